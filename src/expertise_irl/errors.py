@@ -1,0 +1,27 @@
+"""Exceptions raised on bad user input.
+
+Every problem with something the user gave us (a map, a demonstration file, a
+parameter) is raised as :class:`InputError` with a one-line message that names
+the file and the line or step at fault. The command-line interface turns these
+into a message on stderr and exit code 2, with no traceback.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class InputError(ValueError):
+    """A user-supplied input is invalid; the message says where and why."""
+
+
+def where(source: str | Path | None, line: int | None = None, col: int | None = None) -> str:
+    """Format a location prefix such as ``maps/a.txt:3:7: `` (empty if unknown)."""
+    if source is None:
+        return ""
+    loc = str(source)
+    if line is not None:
+        loc += f":{line}"
+        if col is not None:
+            loc += f":{col}"
+    return loc + ": "

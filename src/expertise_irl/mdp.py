@@ -1,0 +1,249 @@
+"""Deterministic tabular MDP with transition features (DESIGN §1) and its ``.npz`` archive.
+
+Shapes: ``S`` states, ``A`` actions, ``K`` features.
+
+- ``next_state[S, A]`` (int): successor state, ``-1`` where the action is unavailable.
+- ``features[S, A, K]`` (float): φ(s, a, next(s, a)); ignored where unavailable.
+- ``terminal[S]`` (bool): absorbing goal states, value 0; an episode ends on entering one.
+
+The reward of a hypothesis θ is exactly ``R[s, a] = θ · φ(s, a)``.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+DEFAULT_GAMMA = 0.95
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, copy=True)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class TabularMDP:
+    """A validated deterministic tabular MDP.
+
+    Construction checks shapes, dtypes and the two structural rules of DESIGN §1:
+    every non-terminal state has an available action, and every non-terminal
+    state can reach a terminal state. Violations raise :class:`InputError`.
+
+    Attributes:
+        next_state: ``[S, A]`` int64, successor or -1 (unavailable).
+        features: ``[S, A, K]`` float64 transition features.
+        terminal: ``[S]`` bool.
+        gamma: discount factor in (0, 1).
+        feature_names: ``K`` names (default ``f0 .. f{K-1}``).
+        start_states: optional ``[M]`` int64 states episodes may start from.
+        state_xy: optional ``[S, 2]`` int64 grid cell (x, y) of each state.
+        source: where the MDP came from, used in error messages.
+    """
+
+    next_state: np.ndarray
+    features: np.ndarray
+    terminal: np.ndarray
+    gamma: float = DEFAULT_GAMMA
+    feature_names: tuple[str, ...] = ()
+    start_states: np.ndarray | None = None
+    state_xy: np.ndarray | None = None
+    source: str = field(default="<mdp>", compare=False)
+
+    def __post_init__(self) -> None:
+        src = self.source
+        ns = np.asarray(self.next_state)
+        if ns.ndim != 2:
+            raise InputError(f"{src}: next_state must have shape [S, A], got {ns.shape}")
+        if not np.issubdtype(ns.dtype, np.integer):
+            raise InputError(f"{src}: next_state must be integer, got dtype {ns.dtype}")
+        S, A = ns.shape
+        if S == 0 or A == 0:
+            raise InputError(f"{src}: next_state must be non-empty, got shape {ns.shape}")
+        feats = np.asarray(self.features)
+        if feats.ndim != 3 or feats.shape[:2] != (S, A):
+            raise InputError(
+                f"{src}: features must have shape [S, A, K] = [{S}, {A}, K], got {feats.shape}"
+            )
+        if feats.shape[2] == 0:
+            raise InputError(f"{src}: features must have at least one feature (K >= 1)")
+        if not np.issubdtype(feats.dtype, np.number) or np.iscomplexobj(feats):
+            raise InputError(f"{src}: features must be real numbers, got dtype {feats.dtype}")
+        term = np.asarray(self.terminal)
+        if term.shape != (S,):
+            raise InputError(f"{src}: terminal must have shape [S] = [{S}], got {term.shape}")
+        if term.dtype != bool:
+            if not np.all(np.isin(term, (0, 1))):
+                raise InputError(f"{src}: terminal must be boolean (0/1)")
+            term = term.astype(bool)
+        bad = (ns < -1) | (ns >= S)
+        if bad.any():
+            s, a = np.argwhere(bad)[0]
+            raise InputError(
+                f"{src}: next_state[{s}, {a}] = {ns[s, a]} is not a state index in [0, {S}) or -1"
+            )
+        avail = ns >= 0
+        feats = feats.astype(np.float64)
+        nonfinite = ~np.isfinite(feats) & avail[:, :, None]
+        if nonfinite.any():
+            s, a, k = np.argwhere(nonfinite)[0]
+            raise InputError(f"{src}: features[{s}, {a}, {k}] is {feats[s, a, k]} (must be finite)")
+        # Unavailable entries never matter; zero them so they cannot leak NaN into sums.
+        feats = np.where(avail[:, :, None], feats, 0.0)
+        if not term.any():
+            raise InputError(f"{src}: the MDP has no terminal (goal) state")
+        stuck = ~term & ~avail.any(axis=1)
+        if stuck.any():
+            s = int(np.flatnonzero(stuck)[0])
+            raise InputError(f"{src}: state {s}{self._cell(s)} has no available action")
+        gamma = float(self.gamma)
+        if not (0.0 < gamma < 1.0):
+            raise InputError(f"{src}: gamma must be in (0, 1), got {self.gamma}")
+        K = feats.shape[2]
+        names = tuple(str(n) for n in self.feature_names) or tuple(f"f{k}" for k in range(K))
+        if len(names) != K:
+            raise InputError(f"{src}: {len(names)} feature names for {K} features")
+        starts = self.start_states
+        if starts is not None:
+            starts = np.asarray(starts)
+            if starts.ndim != 1 or not np.issubdtype(starts.dtype, np.integer):
+                raise InputError(f"{src}: start_states must be a 1-D integer array")
+            if ((starts < 0) | (starts >= S)).any():
+                raise InputError(f"{src}: start_states contains an index outside [0, {S})")
+            if term[starts].any():
+                raise InputError(f"{src}: start_states contains a terminal state")
+            starts = _frozen(starts.astype(np.int64)) if starts.size else None
+        xy = self.state_xy
+        if xy is not None:
+            xy = np.asarray(xy)
+            if xy.shape != (S, 2) or not np.issubdtype(xy.dtype, np.integer):
+                raise InputError(f"{src}: state_xy must be an integer array of shape [{S}, 2]")
+            xy = _frozen(xy.astype(np.int64))
+        set_ = object.__setattr__
+        set_(self, "next_state", _frozen(ns.astype(np.int64)))
+        set_(self, "features", _frozen(feats))
+        set_(self, "terminal", _frozen(term))
+        set_(self, "gamma", gamma)
+        set_(self, "feature_names", names)
+        set_(self, "start_states", starts)
+        set_(self, "state_xy", xy)
+        unreachable = ~term & ~self._reaches_terminal()
+        if unreachable.any():
+            s = int(np.flatnonzero(unreachable)[0])
+            n = int(unreachable.sum())
+            raise InputError(
+                f"{src}: state {s}{self._cell(s)} cannot reach a terminal (goal) state"
+                f" ({n} such state{'s' if n > 1 else ''})"
+            )
+
+    # ------------------------------------------------------------------ shape
+    @property
+    def n_states(self) -> int:
+        return int(self.next_state.shape[0])
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.next_state.shape[1])
+
+    @property
+    def n_features(self) -> int:
+        return int(self.features.shape[2])
+
+    @property
+    def available(self) -> np.ndarray:
+        """``[S, A]`` bool: action available (terminal states count as having none)."""
+        return (self.next_state >= 0) & ~self.terminal[:, None]
+
+    def initial_states(self) -> np.ndarray:
+        """States episodes start from: ``start_states`` if given, else every non-terminal state."""
+        if self.start_states is not None:
+            return self.start_states
+        return np.flatnonzero(~self.terminal)
+
+    def _cell(self, s: int) -> str:
+        if self.state_xy is None:
+            return ""
+        x, y = self.state_xy[s]
+        return f" (cell x={x}, y={y})"
+
+    def describe_state(self, s: int) -> str:
+        """Human-readable name of a state for messages, e.g. ``state 12 (cell x=3, y=1)``."""
+        return f"state {s}{self._cell(s)}"
+
+    def _reaches_terminal(self) -> np.ndarray:
+        """``[S]`` bool: a terminal state is reachable (backward BFS from terminals)."""
+        S = self.n_states
+        preds: list[list[int]] = [[] for _ in range(S)]
+        ok = np.zeros(S, dtype=bool)
+        avail = (self.next_state >= 0) & ~self.terminal[:, None]
+        s_idx, a_idx = np.nonzero(avail)
+        for s, a in zip(s_idx.tolist(), a_idx.tolist(), strict=True):
+            preds[int(self.next_state[s, a])].append(s)
+        queue = deque(np.flatnonzero(self.terminal).tolist())
+        ok[self.terminal] = True
+        while queue:
+            t = queue.popleft()
+            for s in preds[t]:
+                if not ok[s]:
+                    ok[s] = True
+                    queue.append(s)
+        return ok
+
+    # ---------------------------------------------------------------- archive
+    def save(self, path: str | Path) -> None:
+        """Write the MDP archive of DESIGN §2 (``.npz``)."""
+        arrays: dict[str, np.ndarray] = {
+            "next_state": self.next_state,
+            "features": self.features,
+            "terminal": self.terminal,
+            "feature_names": np.array(self.feature_names, dtype=str),
+            "gamma": np.array(self.gamma),
+        }
+        if self.start_states is not None:
+            arrays["start_states"] = self.start_states
+        if self.state_xy is not None:
+            arrays["state_xy"] = self.state_xy
+        with open(path, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+
+    @classmethod
+    def load(cls, path: str | Path) -> TabularMDP:
+        """Read an MDP archive; missing or malformed entries raise :class:`InputError`."""
+        path = Path(path)
+        if not path.is_file():
+            raise InputError(f"{path}: no such file")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+        except Exception as exc:  # zipfile / pickle / format errors
+            raise InputError(f"{path}: not a readable .npz archive ({exc})") from None
+        missing = [k for k in ("next_state", "features", "terminal") if k not in data]
+        if missing:
+            raise InputError(f"{path}: archive lacks required array(s) {', '.join(missing)}")
+        unknown = set(data) - {
+            "next_state", "features", "terminal", "feature_names", "gamma",
+            "start_states", "state_xy",
+        }
+        if unknown:
+            raise InputError(f"{path}: unknown array(s) in archive: {', '.join(sorted(unknown))}")
+        try:
+            gamma = float(data["gamma"]) if "gamma" in data else DEFAULT_GAMMA
+        except (TypeError, ValueError):
+            raise InputError(f"{path}: gamma must be a single number") from None
+        names = tuple(np.atleast_1d(data["feature_names"]).tolist()) if "feature_names" in data else ()
+        return cls(
+            next_state=data["next_state"],
+            features=data["features"],
+            terminal=data["terminal"],
+            gamma=gamma,
+            feature_names=names,
+            start_states=data.get("start_states"),
+            state_xy=data.get("state_xy"),
+            source=str(path),
+        )

@@ -1,0 +1,1 @@
+"""Task worlds that compile to a :class:`~expertise_irl.mdp.TabularMDP`."""

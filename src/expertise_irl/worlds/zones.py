@@ -1,0 +1,324 @@
+"""Zone grid world of paper Sec. V: text maps, the five features, a random generator.
+
+Cells on a W×H grid (x = column, y = row, row 0 at the top). Four actions,
+``up, down, left, right``; a move off the grid or into an obstacle is
+unavailable. Zone legend (DESIGN §2)::
+
+    .  free          #  obstacle       G  goal (terminal)   S  start (free)
+    x  avoid (red)   s  slow (yellow)  t  high traffic (purple)
+    > < ^ v  road (blue) with its travel direction
+
+Features of a move from cell c to neighbour c' in direction d (each signed so
+that a larger θ_i means the person cares more; DESIGN §1):
+
+1. ``length``  −1 per move, plus ``goal_bonus`` on entering a goal.
+2. ``road``    if c' is a road cell with direction r: +1 when d = r, −1 when d = −r,
+               0 across the road.
+3. ``avoid``   −1 when the move enters or exits an avoid zone (exactly one of c, c' is in it).
+4. ``slow``    −1 when the move is made from inside a slow-down zone (c is slow).
+5. ``traffic`` −1 when the move enters or exits a high-traffic zone.
+
+Optional settings live in a TOML file beside the map (same name, ``.toml``):
+``goal_bonus`` (default 10) and ``gamma`` (default 0.95).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..mdp import DEFAULT_GAMMA, TabularMDP
+
+ACTION_NAMES = ("up", "down", "left", "right")
+#: (dx, dy) of each action; y grows downwards.
+ACTION_DELTAS = np.array([(0, -1), (0, 1), (-1, 0), (1, 0)], dtype=np.int64)
+FEATURE_NAMES = ("length", "road", "avoid", "slow", "traffic")
+DEFAULT_GOAL_BONUS = 10.0
+
+FREE, OBSTACLE, GOAL, START = ".", "#", "G", "S"
+AVOID, SLOW, TRAFFIC = "x", "s", "t"
+ROAD_DIRECTIONS = {"^": 0, "v": 1, "<": 2, ">": 3}  # road char -> action index of its direction
+LEGEND = (FREE, OBSTACLE, GOAL, START, AVOID, SLOW, TRAFFIC, *ROAD_DIRECTIONS)
+_OPPOSITE = np.array([1, 0, 3, 2])
+_SETTINGS = {"goal_bonus": float, "gamma": float}
+
+
+@dataclass(frozen=True, eq=False)
+class ZoneMap:
+    """A parsed zone map. ``grid[y, x]`` holds one legend character.
+
+    Attributes:
+        grid: ``[height, width]`` array of single characters.
+        goal_bonus: added to the length feature on entering a goal.
+        gamma: discount factor of the compiled MDP.
+        name: file name or label, used in messages and figures.
+    """
+
+    grid: np.ndarray
+    goal_bonus: float = DEFAULT_GOAL_BONUS
+    gamma: float = DEFAULT_GAMMA
+    name: str = "<map>"
+
+    def __post_init__(self) -> None:
+        g = np.asarray(self.grid, dtype="<U1")
+        if g.ndim != 2 or g.size == 0:
+            raise InputError(f"{self.name}: map must be a non-empty rectangle of cells")
+        bad = ~np.isin(g, LEGEND)
+        if bad.any():
+            y, x = np.argwhere(bad)[0]
+            raise InputError(
+                f"{self.name}:{y + 1}:{x + 1}: unknown map character {g[y, x]!r} "
+                f"(legend: {' '.join(LEGEND)})"
+            )
+        if not (g == GOAL).any():
+            raise InputError(f"{self.name}: map has no goal cell 'G'")
+        if not np.isfinite(self.goal_bonus):
+            raise InputError(f"{self.name}: goal_bonus must be a finite number")
+        if not 0.0 < float(self.gamma) < 1.0:
+            raise InputError(f"{self.name}: gamma must be in (0, 1), got {self.gamma}")
+        g.setflags(write=False)
+        object.__setattr__(self, "grid", g)
+
+    @property
+    def height(self) -> int:
+        return int(self.grid.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.grid.shape[1])
+
+    @property
+    def passable(self) -> np.ndarray:
+        """``[height, width]`` bool: the cell is a state (not an obstacle)."""
+        return self.grid != OBSTACLE
+
+    @property
+    def cells(self) -> np.ndarray:
+        """``[S, 2]`` (x, y) of each state, row-major order."""
+        ys, xs = np.nonzero(self.passable)
+        return np.stack([xs, ys], axis=1).astype(np.int64)
+
+    def state_index(self) -> np.ndarray:
+        """``[height, width]`` state index of each cell, -1 for obstacles."""
+        idx = np.full(self.grid.shape, -1, dtype=np.int64)
+        idx[self.passable] = np.arange(int(self.passable.sum()))
+        return idx
+
+    def to_text(self) -> str:
+        return "\n".join("".join(row) for row in self.grid) + "\n"
+
+    def to_mdp(self) -> TabularMDP:
+        """Compile to a :class:`TabularMDP` with the five features of the module docstring."""
+        g = self.grid
+        idx = self.state_index()
+        cells = self.cells
+        S = len(cells)
+        xs, ys = cells[:, 0], cells[:, 1]
+        nx = xs[:, None] + ACTION_DELTAS[None, :, 0]
+        ny = ys[:, None] + ACTION_DELTAS[None, :, 1]
+        inside = (nx >= 0) & (nx < self.width) & (ny >= 0) & (ny < self.height)
+        nxc, nyc = np.clip(nx, 0, self.width - 1), np.clip(ny, 0, self.height - 1)
+        next_state = np.where(inside, idx[nyc, nxc], -1)  # obstacles are -1 in idx
+        src = g[ys, xs][:, None]  # [S, 1]
+        dst = g[nyc, nxc]  # [S, A]
+        feats = np.zeros((S, 4, 5))
+        feats[..., 0] = -1.0 + np.where(dst == GOAL, self.goal_bonus, 0.0)
+        road_dir = np.full(dst.shape, -1)
+        for ch, d in ROAD_DIRECTIONS.items():
+            road_dir[dst == ch] = d
+        act = np.arange(4)[None, :]
+        feats[..., 1] = np.where(road_dir == act, 1.0, np.where(road_dir == _OPPOSITE[act], -1.0, 0.0))
+        feats[..., 2] = -((src == AVOID) != (dst == AVOID)).astype(float)
+        feats[..., 3] = -np.broadcast_to(src == SLOW, dst.shape).astype(float)
+        feats[..., 4] = -((src == TRAFFIC) != (dst == TRAFFIC)).astype(float)
+        terminal = g[ys, xs] == GOAL
+        starts = np.flatnonzero(g[ys, xs] == START)
+        return TabularMDP(
+            next_state=next_state,
+            features=feats,
+            terminal=terminal,
+            gamma=self.gamma,
+            feature_names=FEATURE_NAMES,
+            start_states=starts if starts.size else None,
+            state_xy=cells,
+            source=self.name,
+        )
+
+
+def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOAL_BONUS,
+              gamma: float = DEFAULT_GAMMA) -> ZoneMap:
+    """Parse a text map. Blank lines at the start and end are ignored; rows must be equally long."""
+    lines = text.splitlines()
+    first = 0
+    while first < len(lines) and not lines[first].strip():
+        first += 1
+    rows = [ln.rstrip("\r") for ln in lines[first:]]
+    while rows and not rows[-1].strip():
+        rows.pop()
+    if not rows:
+        raise InputError(f"{name}: map is empty")
+    width = len(rows[0])
+    for i, row in enumerate(rows):
+        lineno = first + i + 1
+        if not row:
+            raise InputError(f"{name}:{lineno}: blank line inside the map")
+        for j, ch in enumerate(row):
+            if ch not in LEGEND:
+                raise InputError(
+                    f"{name}:{lineno}:{j + 1}: unknown map character {ch!r} (legend: {' '.join(LEGEND)})"
+                )
+        if len(row) != width:
+            raise InputError(
+                f"{name}:{lineno}: row has {len(row)} cells but the first row has {width}; "
+                "every row must have the same length"
+            )
+    grid = np.array([list(r) for r in rows], dtype="<U1")
+    return ZoneMap(grid, goal_bonus=goal_bonus, gamma=gamma, name=name)
+
+
+def read_settings(path: Path) -> dict[str, float]:
+    """Read the optional settings TOML; unknown keys or wrong types raise :class:`InputError`."""
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: invalid TOML ({exc})") from None
+    out = {}
+    for key, value in data.items():
+        if key not in _SETTINGS:
+            raise InputError(f"{path}: unknown setting {key!r} (known: {', '.join(_SETTINGS)})")
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise InputError(f"{path}: setting {key!r} must be a number, got {value!r}")
+        out[key] = float(value)
+    return out
+
+
+def load_map(path: str | Path) -> ZoneMap:
+    """Read a text map and, if present, the settings TOML beside it (``name.toml``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such map file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (UTF-8)") from None
+    settings_path = path.with_suffix(".toml")
+    settings = read_settings(settings_path) if settings_path.is_file() else {}
+    return parse_map(text, name=str(path), **settings)
+
+
+def bundled_maps() -> list[str]:
+    """Names of the example maps shipped with the package."""
+    files = resources.files("expertise_irl") / "maps"
+    return sorted(p.name[:-4] for p in files.iterdir() if p.name.endswith(".txt"))
+
+
+def load_bundled(name: str) -> ZoneMap:
+    """Load a bundled example map by name (see :func:`bundled_maps`)."""
+    if name not in bundled_maps():
+        raise InputError(f"no bundled map {name!r} (available: {', '.join(bundled_maps())})")
+    base = resources.files("expertise_irl") / "maps"
+    text = (base / f"{name}.txt").read_text(encoding="utf-8")
+    toml = base / f"{name}.toml"
+    settings = {}
+    if toml.is_file():
+        with resources.as_file(toml) as p:
+            settings = read_settings(Path(p))
+    return parse_map(text, name=f"bundled:{name}", **settings)
+
+
+def resolve_map(spec: str | Path) -> ZoneMap:
+    """A map from a file path, or a bundled map by name if no such file exists."""
+    p = Path(spec)
+    if p.is_file():
+        return load_map(p)
+    if str(spec) in bundled_maps():
+        return load_bundled(str(spec))
+    raise InputError(
+        f"{spec}: no such map file, and no bundled map of that name "
+        f"(bundled: {', '.join(bundled_maps())})"
+    )
+
+
+def reachable_from_goals(grid: np.ndarray) -> np.ndarray:
+    """``[height, width]`` bool: passable cells connected to a goal (4-neighbourhood)."""
+    h, w = grid.shape
+    passable = grid != OBSTACLE
+    seen = grid == GOAL
+    frontier = list(zip(*np.nonzero(seen), strict=True))
+    while frontier:
+        nxt = []
+        for y, x in frontier:
+            for dx, dy in ACTION_DELTAS:
+                yy, xx = y + dy, x + dx
+                if 0 <= yy < h and 0 <= xx < w and passable[yy, xx] and not seen[yy, xx]:
+                    seen[yy, xx] = True
+                    nxt.append((yy, xx))
+        frontier = nxt
+    return seen
+
+
+def generate_map(
+    rng: np.random.Generator,
+    *,
+    min_size: int = 10,
+    max_size: int = 30,
+    width: int | None = None,
+    height: int | None = None,
+    max_zones: int = 4,
+    goal_bonus: float = DEFAULT_GOAL_BONUS,
+    gamma: float = DEFAULT_GAMMA,
+    name: str = "<generated>",
+) -> ZoneMap:
+    """A random zone map following Sec. V-A, with the goal reachable from every free cell.
+
+    Size is drawn uniformly in ``[min_size, max_size]`` per side unless given. For each
+    zone type (road, slow, traffic, avoid, obstacle, painted in that order) 0..``max_zones``
+    rectangles are placed at random positions with random sizes; roads are strips one or
+    two cells wide along a random axis and direction. One goal is placed on a random
+    non-obstacle cell; any pocket cut off from it by obstacles is filled with obstacles,
+    so the compiled MDP always passes validation. Draws are retried (at most 100 times)
+    until at least half of the grid stays passable.
+    """
+    if min_size < 3 or max_size < min_size:
+        raise InputError(f"need 3 <= min_size <= max_size, got {min_size}, {max_size}")
+    for _ in range(100):
+        w = width or int(rng.integers(min_size, max_size + 1))
+        h = height or int(rng.integers(min_size, max_size + 1))
+        g = np.full((h, w), FREE, dtype="<U1")
+
+        def rect(max_frac: float) -> tuple[int, int, int, int]:
+            rw = int(rng.integers(1, max(2, int(w * max_frac)) + 1))
+            rh = int(rng.integers(1, max(2, int(h * max_frac)) + 1))
+            x0 = int(rng.integers(0, w - min(rw, w) + 1))
+            y0 = int(rng.integers(0, h - min(rh, h) + 1))
+            return x0, y0, min(rw, w), min(rh, h)
+
+        for _z in range(int(rng.integers(0, max_zones + 1))):  # roads
+            thick = int(rng.integers(1, 3))
+            if rng.random() < 0.5:  # horizontal
+                length = int(rng.integers(max(2, w // 3), w + 1))
+                x0, y0 = int(rng.integers(0, w - length + 1)), int(rng.integers(0, h - thick + 1))
+                g[y0:y0 + thick, x0:x0 + length] = ">" if rng.random() < 0.5 else "<"
+            else:
+                length = int(rng.integers(max(2, h // 3), h + 1))
+                x0, y0 = int(rng.integers(0, w - thick + 1)), int(rng.integers(0, h - length + 1))
+                g[y0:y0 + length, x0:x0 + thick] = "v" if rng.random() < 0.5 else "^"
+        for ch, frac in ((SLOW, 0.3), (TRAFFIC, 0.3), (AVOID, 0.25), (OBSTACLE, 0.2)):
+            for _z in range(int(rng.integers(0, max_zones + 1))):
+                x0, y0, rw, rh = rect(frac)
+                g[y0:y0 + rh, x0:x0 + rw] = ch
+        free = np.argwhere(g != OBSTACLE)
+        if len(free) < 2:
+            continue
+        gy, gx = free[int(rng.integers(len(free)))]
+        g[gy, gx] = GOAL
+        reach = reachable_from_goals(g)
+        g[(g != OBSTACLE) & ~reach] = OBSTACLE
+        if reach.sum() >= 0.5 * w * h and reach.sum() >= 2:
+            return ZoneMap(g, goal_bonus=goal_bonus, gamma=gamma, name=name)
+    raise RuntimeError("could not generate a map with at least half the grid passable")  # pragma: no cover
