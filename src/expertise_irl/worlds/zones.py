@@ -291,7 +291,7 @@ def generate_map(
         h = height or int(rng.integers(min_size, max_size + 1))
         g = np.full((h, w), FREE, dtype="<U1")
 
-        def rect(max_frac: float) -> tuple[int, int, int, int]:
+        def rect(max_frac: float, w: int = w, h: int = h) -> tuple[int, int, int, int]:
             rw = int(rng.integers(1, max(2, int(w * max_frac)) + 1))
             rh = int(rng.integers(1, max(2, int(h * max_frac)) + 1))
             x0 = int(rng.integers(0, w - min(rw, w) + 1))
@@ -321,4 +321,4 @@ def generate_map(
         g[(g != OBSTACLE) & ~reach] = OBSTACLE
         if reach.sum() >= 0.5 * w * h and reach.sum() >= 2:
             return ZoneMap(g, goal_bonus=goal_bonus, gamma=gamma, name=name)
-    raise RuntimeError("could not generate a map with at least half the grid passable")  # pragma: no cover
+    raise RuntimeError("could not generate a map with at least half the grid passable")

@@ -1,0 +1,357 @@
+"""Command-line interface: ``expertise-irl demo | simulate | infer | export-mdp | render | maps``.
+
+Every problem with the user's input is reported as one line on stderr,
+``error: <file>:<line>: <what is wrong>``, with exit code 2 and no traceback.
+Existing output files are never overwritten unless ``--force`` is given.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from . import __version__
+from .errors import InputError
+from .planning import ConvergenceError
+
+app = typer.Typer(
+    name="expertise-irl",
+    help="Infer what a person wants (reward weights θ) and how expert they are (temperature β) "
+    "from demonstrations.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+out = Console()
+err = Console(stderr=True)
+
+
+def _fail(message: str, code: int = 2) -> None:
+    err.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    raise typer.Exit(code)
+
+
+def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn input problems into a one-line message and exit code 2 (no traceback)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except InputError as exc:
+            _fail(str(exc))
+        except ConvergenceError as exc:
+            _fail(str(exc), code=1)
+        except PermissionError as exc:
+            _fail(f"{exc.filename}: permission denied")
+        except IsADirectoryError as exc:
+            _fail(f"{exc.filename}: is a directory")
+        except KeyboardInterrupt:
+            _fail("interrupted", code=130)
+
+    return wrapper
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[progress.description]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} hypotheses"),
+        TimeElapsedColumn(),
+        console=err,
+    )
+
+
+def _solve_progress(bar: Progress, description: str) -> Callable[[int, int], None]:
+    task = bar.add_task(description, total=None)
+
+    def update(done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    return update
+
+
+def _load_mdp(map_spec: str | None, mdp_path: Path | None):
+    """(mdp, zone_map or None) from exactly one of MAP or --mdp."""
+    from .mdp import TabularMDP
+    from .worlds.zones import resolve_map
+
+    if (map_spec is None) == (mdp_path is None):
+        raise InputError("give exactly one of MAP (a map file or bundled map name) or --mdp FILE.npz")
+    if mdp_path is not None:
+        return TabularMDP.load(mdp_path), None
+    zone_map = resolve_map(map_spec)
+    return zone_map.to_mdp(), zone_map
+
+
+def _parse_theta(spec: str, n_features: int, names) -> np.ndarray:
+    from .hypotheses import normalize_theta
+
+    try:
+        values = [float(x) for x in spec.split(",")]
+    except ValueError:
+        raise InputError(f"--theta: {spec!r} is not a comma-separated list of numbers") from None
+    if len(values) != n_features:
+        raise InputError(
+            f"--theta has {len(values)} values but the MDP has {n_features} features ({', '.join(names)})"
+        )
+    return normalize_theta(values, what="--theta")
+
+
+def _check_beta(beta: float, what: str = "--beta") -> float:
+    if not math.isfinite(beta) or beta <= 0:
+        raise InputError(f"{what} must be a number > 0, got {beta:g}")
+    return beta
+
+
+# --------------------------------------------------------------------------- commands
+@app.command()
+@handles_errors
+def demo(
+    seed: Annotated[int, typer.Option(help="Random seed: map, hypothesis set, truth and episodes.")] = 0,
+    out_dir: Annotated[Path, typer.Option("--out", help="Directory for demo.png and result.json.")] = Path(
+        "expertise-irl-demo"
+    ),
+    map_spec: Annotated[
+        str | None, typer.Option("--map", help="Map file or bundled map name (default: a random map).")
+    ] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="Episodes the simulated person demonstrates.")] = 20,
+    k: Annotated[int, typer.Option(min=1, help="Preference vectors in the hypothesis set Θ_k.")] = 20,
+    force: Annotated[bool, typer.Option(help="Overwrite demo.png / result.json if they exist.")] = False,
+) -> None:
+    """Simulate a person on a map, infer their expertise and preferences, and report."""
+    from .experiments.demo import demo_outputs, run_demo
+    from .results import check_writable, discrete_result, write_json
+    from .worlds.render import paths_to_xy, render_summary_png
+
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"{out_dir}: exists and is not a directory")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    png, js = demo_outputs(out_dir)
+    for p in (png, js):
+        check_writable(p, force=force)
+    t0 = time.perf_counter()
+    with _progress() as bar:
+        run = run_demo(seed, map_spec=map_spec, episodes=episodes, k=k,
+                       progress=_solve_progress(bar, "solving soft value iteration"))
+    elapsed = time.perf_counter() - t0
+    s = run.summary()
+    names = run.mdp.feature_names
+    table = Table(title=f"expertise-irl demo (seed {seed}) on {run.zone_map.name}: "
+                  f"{run.mdp.n_states} states, {len(run.hypotheses)} hypotheses, "
+                  f"{run.trajectories.n_episodes} episodes / {len(run.trajectories)} actions")
+    table.add_column("")
+    table.add_column("true", justify="right")
+    table.add_column("inferred", justify="right")
+    table.add_row("expertise β", f"{s['beta_true']:g}", f"{s['beta_hat']:.3g}")
+    table.add_row("expertise group", s["group_true"], s["group_hat"])
+    for i, n in enumerate(names):
+        table.add_row(f"θ {n}", f"{s['theta_true'][i]:.3f}", f"{s['theta_hat'][i]:.3f}")
+    table.add_row("P(true hypothesis)", "", f"{s['truth_probability']:.3f}")
+    table.add_row("expertise distance |β*−β̂|", "", f"{s['expertise_distance']:.3g}")
+    table.add_row("cosine similarity (θ*, θ̂)", "", f"{s['cosine_similarity']:.3f}")
+    table.add_row("policy regret", "", f"{s['policy_regret']:.3g}")
+    out.print(table)
+    b = run.belief
+    betas, pb = b.marginal_beta()
+    thetas, pt = b.marginal_theta()
+    render_summary_png(
+        png, run.zone_map, paths_to_xy(run.trajectories, run.mdp), betas, pb, thetas, pt, names,
+        theta_true=run.theta_true, beta_true=run.beta_true,
+        title=f"seed {seed}: β*={run.beta_true:g}, β̂={b.mean_beta:.3g}",
+    )
+    doc = discrete_result(
+        b, feature_names=names,
+        settings={"command": "demo", "seed": seed, "map": run.zone_map.name, "episodes": episodes,
+                  "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim",
+                  "gamma": run.mdp.gamma, "goal_bonus": run.zone_map.goal_bonus},
+        data={"episodes": run.trajectories.n_episodes, "actions": len(run.trajectories)},
+    )
+    doc["truth"] = {"theta": s["theta_true"], "beta": s["beta_true"], "group": s["group_true"],
+                    "probability": s["truth_probability"]}
+    doc["metrics"] = {k_: s[k_] for k_ in ("expertise_distance", "cosine_similarity", "policy_regret")}
+    doc["run_time_s"] = elapsed
+    write_json(js, doc)
+    out.print(f"wrote {png} and {js} ({elapsed:.1f} s)")
+
+
+@app.command("export-mdp")
+@handles_errors
+def export_mdp(
+    map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
+    out_path: Annotated[Path, typer.Option("--out", help="Output .npz archive.")],
+    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+) -> None:
+    """Compile a text map to the MDP archive (.npz) that every command accepts."""
+    from .results import check_writable
+    from .worlds.zones import resolve_map
+
+    check_writable(out_path, force=force)
+    mdp = resolve_map(map_spec).to_mdp()
+    mdp.save(out_path)
+    out.print(f"wrote {out_path}: {mdp.n_states} states, {mdp.n_actions} actions, "
+              f"features {', '.join(mdp.feature_names)}, gamma {mdp.gamma:g}")
+
+
+@app.command()
+@handles_errors
+def simulate(
+    out_path: Annotated[Path, typer.Option("--out", help="Output demonstrations CSV.")],
+    theta: Annotated[str, typer.Option(help="Preferences θ*, comma-separated (normalised to unit l1).")],
+    beta: Annotated[float, typer.Option(help="Expertise temperature β* > 0 (small = expert).")],
+    map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
+    mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (actions).")] = 500,
+    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+) -> None:
+    """Simulate a max-entropy person with preferences θ* and expertise β*; write demonstrations CSV."""
+    from .demos import simulate as simulate_episodes
+    from .demos import write_demos_csv
+    from .results import check_writable
+
+    check_writable(out_path, force=force)
+    mdp, _ = _load_mdp(map_spec, mdp_path)
+    th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
+    _check_beta(beta)
+    trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps)
+    write_demos_csv(out_path, trajs, mdp)
+    out.print(f"wrote {out_path}: {trajs.n_episodes} episodes, {len(trajs)} actions "
+              f"(θ*={np.round(th, 4).tolist()}, β*={beta:g})")
+
+
+@app.command()
+@handles_errors
+def infer(
+    demos: Annotated[Path, typer.Option(help="Demonstrations CSV (episode,step,state,action or x,y).")],
+    out_path: Annotated[Path, typer.Option("--out", help="Output result JSON.")],
+    map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
+    mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
+    thetas: Annotated[str, typer.Option(
+        help="Θ: a preset (paper-sim, paper-real) or comma-separated component values; "
+        "the unit-l1 grid over all features is built from them.")] = "paper-real",
+    betas: Annotated[str, typer.Option(
+        help="B: a preset (paper-sim, paper-real) or comma-separated temperatures.")] = "paper-sim",
+    sample_thetas: Annotated[int | None, typer.Option(
+        min=1, help="Use only k preference vectors drawn at random (--seed) from Θ.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed for --sample-thetas.")] = 0,
+    per_action: Annotated[bool, typer.Option(
+        "--per-action", help="Update after every action and record the live estimates (trace).")] = False,
+    tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
+    chunk_size: Annotated[int | None, typer.Option(
+        min=1, help="Hypotheses solved at once (bounds memory; default from a 512 MiB budget).")] = None,
+    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+) -> None:
+    """Infer expertise β and preferences θ with the discrete hypothesis set (paper Eq. 13)."""
+    from .demos import read_demos_csv
+    from .hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from .hypotheses import sample_thetas as sample
+    from .inference.belief import DiscreteBelief
+    from .results import check_writable, discrete_result, write_json
+
+    check_writable(out_path, force=force)
+    mdp, _ = _load_mdp(map_spec, mdp_path)
+    trajs = read_demos_csv(demos, mdp)
+    th = resolve_thetas(thetas, mdp.n_features)
+    if sample_thetas is not None:
+        th = sample(th, min(sample_thetas, len(th)), np.random.default_rng(seed))
+    hyp = HypothesisSet(th, resolve_betas(betas))
+    if not (tol > 0 and math.isfinite(tol)):
+        raise InputError(f"--tol must be a number > 0, got {tol:g}")
+    t0 = time.perf_counter()
+    with _progress() as bar:
+        chunk = chunk_size or _chunk_for_progress(mdp, len(hyp))
+        prior = DiscreteBelief.from_mdp(mdp, hyp, tol=tol, chunk_size=chunk,
+                                        progress=_solve_progress(bar, "solving soft value iteration"))
+    post = prior.update(trajs, per_action=per_action)
+    trace = prior.trace(trajs) if per_action else None
+    elapsed = time.perf_counter() - t0
+    settings = {
+        "command": "infer", "method": "discrete",
+        "mdp": str(mdp_path) if mdp_path else str(map_spec), "demos": str(demos),
+        "thetas": thetas, "betas": betas, "sample_thetas": sample_thetas, "seed": seed,
+        "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
+        "prior": "uniform", "per_action": per_action, "tol": tol, "gamma": mdp.gamma,
+    }
+    doc = discrete_result(post, feature_names=mdp.feature_names, settings=settings,
+                          data={"episodes": trajs.n_episodes, "actions": len(trajs)},
+                          trace=trace, trace_index=(trajs.episode, trajs.step))
+    doc["run_time_s"] = elapsed
+    write_json(out_path, doc)
+    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(mdp.feature_names, post.mean_theta, strict=True))
+    out.print(f"β̂ = {post.mean_beta:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
+    if post.n_impossible:
+        out.print(f"note: {post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
+    out.print(f"wrote {out_path} ({len(hyp)} hypotheses, {len(trajs)} actions, {elapsed:.1f} s)")
+
+
+def _chunk_for_progress(mdp, n_hyp: int) -> int:
+    """About 20 progress steps, never above the memory-bounded default chunk."""
+    from .planning import default_chunk_size
+
+    return max(1, min(default_chunk_size(mdp), math.ceil(n_hyp / 20)))
+
+
+@app.command()
+@handles_errors
+def render(
+    map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
+    out_path: Annotated[Path, typer.Option("--out", help="Output PNG.")],
+    demos: Annotated[Path | None, typer.Option(help="Demonstrations CSV to draw on the map.")] = None,
+    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+) -> None:
+    """Draw a map (and optionally demonstrations) as a PNG in the style of the paper's Fig. 1."""
+    from .demos import read_demos_csv
+    from .results import check_writable
+    from .worlds.render import paths_to_xy, render_map_png
+    from .worlds.zones import resolve_map
+
+    check_writable(out_path, force=force)
+    zone_map = resolve_map(map_spec)
+    paths = None
+    if demos is not None:
+        mdp = zone_map.to_mdp()
+        paths = paths_to_xy(read_demos_csv(demos, mdp), mdp)
+    render_map_png(zone_map, out_path, trajectories_xy=paths, title=zone_map.name)
+    out.print(f"wrote {out_path}")
+
+
+@app.command()
+def maps() -> None:
+    """List the bundled example maps."""
+    from .worlds.zones import bundled_maps as names
+    from .worlds.zones import load_bundled
+
+    for name in names():
+        m = load_bundled(name)
+        out.print(f"{name:12s} {m.width}×{m.height}, {int(m.passable.sum())} states")
+
+
+def _version(value: bool) -> None:
+    if value:
+        out.print(f"expertise-irl {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Show the version and exit.")] = False,
+) -> None:
+    """Joint inference of expertise and reward from demonstrations."""
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app()

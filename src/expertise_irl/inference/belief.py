@@ -1,0 +1,268 @@
+"""Discrete-set Bayesian belief over Ψ = Θ × B (paper Eq. 13), in log space.
+
+The belief keeps the accumulated log-likelihood of every hypothesis and its
+log prior; the posterior is their normalised sum. Updating after each action
+or after each whole trajectory gives the same posterior (the log-likelihood
+is a sum over pairs, Eq. 11); the per-action form exists for live estimates.
+
+A hypothesis that cannot produce an observed action gets log-likelihood −∞
+and stays at probability 0 (``n_impossible`` counts them). If *every*
+hypothesis becomes impossible the update raises :class:`InputError` naming
+the offending step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+from scipy.special import logsumexp
+
+from ..demos import Trajectories
+from ..errors import InputError
+from ..hypotheses import HypothesisSet, expertise_group
+from ..mdp import TabularMDP
+from ..planning import pair_log_likelihoods, solve
+
+
+class Trace(NamedTuple):
+    """Point estimates after each observed action (index 0 = prior, i = after i actions).
+
+    Attributes:
+        mean_beta: ``[N + 1]`` E[β].
+        mean_theta: ``[N + 1, K]`` E[θ].
+        entropy: ``[N + 1]`` posterior entropy (nats).
+        truth_probability: ``[N + 1]`` probability of hypothesis ``truth`` (NaN if not given).
+    """
+
+    mean_beta: np.ndarray
+    mean_theta: np.ndarray
+    entropy: np.ndarray
+    truth_probability: np.ndarray
+
+
+def normalize_log(logw: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Log-probabilities from unnormalised log-weights (−inf allowed, not all)."""
+    return logw - logsumexp(logw, axis=axis, keepdims=True)
+
+
+def _check_pairs(log_policy: np.ndarray, states, actions) -> tuple[np.ndarray, np.ndarray]:
+    states = np.atleast_1d(np.asarray(states, dtype=np.int64))
+    actions = np.atleast_1d(np.asarray(actions, dtype=np.int64))
+    _, S, A = log_policy.shape
+    if states.shape != actions.shape or states.ndim != 1:
+        raise InputError("states and actions must be 1-D arrays of equal length")
+    bad = (states < 0) | (states >= S) | (actions < 0) | (actions >= A)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"step {i}: (state {states[i]}, action {actions[i]}) is outside the MDP "
+            f"({S} states, {A} actions)"
+        )
+    return states, actions
+
+
+@dataclass(frozen=True, eq=False)
+class DiscreteBelief:
+    """Posterior over a finite hypothesis set; immutable (updates return a new belief).
+
+    Attributes:
+        hypotheses: the set Ψ = Θ × B, H = len(hypotheses).
+        log_policy: ``[H, S, A]`` log π_h(a|s) from :func:`~expertise_irl.planning.solve`.
+        log_prior: ``[H]`` normalised log prior.
+        log_likelihood: ``[H]`` accumulated log P(Ξ | h) of everything observed.
+        n_observed: number of (state, action) pairs observed so far.
+    """
+
+    hypotheses: HypothesisSet
+    log_policy: np.ndarray
+    log_prior: np.ndarray
+    log_likelihood: np.ndarray
+    n_observed: int = 0
+
+    # ------------------------------------------------------------ construction
+    @classmethod
+    def from_mdp(
+        cls,
+        mdp: TabularMDP,
+        hypotheses: HypothesisSet,
+        *,
+        prior: np.ndarray | None = None,
+        **solve_kwargs,
+    ) -> DiscreteBelief:
+        """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
+
+        ``solve_kwargs`` go to :func:`~expertise_irl.planning.solve` (tol, chunk_size, progress...).
+        """
+        if hypotheses.thetas.shape[1] != mdp.n_features:
+            raise InputError(
+                f"hypotheses have {hypotheses.thetas.shape[1]} features but the MDP has "
+                f"{mdp.n_features} ({', '.join(mdp.feature_names)})"
+            )
+        sol = solve(mdp, hypotheses.theta, hypotheses.beta, **solve_kwargs)
+        return cls.from_log_policy(hypotheses, sol.log_policy, prior=prior)
+
+    @classmethod
+    def from_log_policy(
+        cls, hypotheses: HypothesisSet, log_policy: np.ndarray, *, prior: np.ndarray | None = None
+    ) -> DiscreteBelief:
+        H = len(hypotheses)
+        log_policy = np.asarray(log_policy, dtype=np.float64)
+        if log_policy.ndim != 3 or log_policy.shape[0] != H:
+            raise InputError(f"log_policy must have shape [H={H}, S, A], got {log_policy.shape}")
+        if prior is None:
+            log_prior = np.full(H, -np.log(H))
+        else:
+            prior = np.asarray(prior, dtype=np.float64)
+            if prior.shape != (H,) or np.any(prior < 0) or not np.all(np.isfinite(prior)):
+                raise InputError(f"prior must be {H} finite non-negative weights")
+            if prior.sum() <= 0:
+                raise InputError("prior must have positive total weight")
+            with np.errstate(divide="ignore"):
+                log_prior = np.log(prior / prior.sum())
+        return cls(hypotheses, log_policy, log_prior, np.zeros(H), 0)
+
+    # ----------------------------------------------------------------- updates
+    def update_pairs(self, states, actions, *, episode: int | None = None) -> DiscreteBelief:
+        """Condition on (state, action) pairs (one trajectory or any batch of them)."""
+        states, actions = _check_pairs(self.log_policy, states, actions)
+        ll = pair_log_likelihoods(self.log_policy, states, actions)  # [H, N]
+        total = self.log_likelihood + ll.sum(axis=1)
+        alive = np.isfinite(self.log_prior + total)
+        if not alive.any():
+            # The step at which the last surviving hypothesis became impossible.
+            prev_alive = np.isfinite(self.log_prior + self.log_likelihood)
+            first_dead = np.argmax(~np.isfinite(ll), axis=1)  # first -inf pair per hypothesis
+            t = int(first_dead[prev_alive].max()) if prev_alive.any() else 0
+            at = (
+                f"episode {episode} step {t}" if episode is not None
+                else f"observed pair {self.n_observed + t}"
+            )
+            raise InputError(
+                f"{at}: action {actions[t]} in state {states[t]} is impossible under every hypothesis"
+            )
+        return replace(self, log_likelihood=total, n_observed=self.n_observed + len(states))
+
+    def update_action(self, state: int, action: int) -> DiscreteBelief:
+        """Streaming update with a single observed action."""
+        return self.update_pairs([state], [action])
+
+    def update_trajectory(self, states, actions, *, episode: int | None = None) -> DiscreteBelief:
+        """Update with one whole trajectory (Eq. 13)."""
+        return self.update_pairs(states, actions, episode=episode)
+
+    def update(self, trajs: Trajectories, *, per_action: bool = False) -> DiscreteBelief:
+        """Condition on every episode of ``trajs``, one trajectory (or one action) at a time."""
+        b = self
+        for e, (states, actions) in zip(trajs.episode_ids, trajs.episodes(), strict=True):
+            if per_action:
+                for t, (s, a) in enumerate(zip(states.tolist(), actions.tolist(), strict=True)):
+                    try:
+                        b = b.update_action(s, a)
+                    except InputError:
+                        raise InputError(
+                            f"episode {e} step {t}: action {a} in state {s} is impossible "
+                            "under every hypothesis"
+                        ) from None
+            else:
+                b = b.update_trajectory(states, actions, episode=int(e))
+        return b
+
+    # -------------------------------------------------------------- posterior
+    @property
+    def log_posterior(self) -> np.ndarray:
+        """``[H]`` normalised log posterior."""
+        return normalize_log(self.log_prior + self.log_likelihood)
+
+    @property
+    def probabilities(self) -> np.ndarray:
+        """``[H]`` posterior probabilities."""
+        return np.exp(self.log_posterior)
+
+    @property
+    def n_impossible(self) -> int:
+        """Hypotheses with log-likelihood −∞ (they cannot produce some observed action)."""
+        return int(np.sum(np.isneginf(self.log_likelihood)))
+
+    def marginal_beta(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(betas [n_beta], P(β) [n_beta])``."""
+        p = self.probabilities.reshape(self.hypotheses.n_theta, self.hypotheses.n_beta)
+        return self.hypotheses.betas.copy(), p.sum(axis=0)
+
+    def marginal_theta(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(thetas [n_theta, K], P(θ) [n_theta])``."""
+        p = self.probabilities.reshape(self.hypotheses.n_theta, self.hypotheses.n_beta)
+        return self.hypotheses.thetas.copy(), p.sum(axis=1)
+
+    @property
+    def mean_beta(self) -> float:
+        """β̂ = E[β] (the paper's point estimate)."""
+        b, p = self.marginal_beta()
+        return float(b @ p)
+
+    @property
+    def mean_theta(self) -> np.ndarray:
+        """θ̂ = E[θ], ``[K]`` (unit l1 norm, as every hypothesis θ is)."""
+        t, p = self.marginal_theta()
+        return p @ t
+
+    def map_hypothesis(self) -> tuple[np.ndarray, float, float]:
+        """``(θ, β, probability)`` of the most probable hypothesis."""
+        h = int(np.argmax(self.log_posterior))
+        return self.hypotheses.theta[h], float(self.hypotheses.beta[h]), float(self.probabilities[h])
+
+    @property
+    def entropy(self) -> float:
+        """Posterior entropy in nats."""
+        lp = self.log_posterior
+        p = np.exp(lp)
+        return float(-np.sum(np.where(p > 0, p * lp, 0.0)))
+
+    def group_probabilities(self) -> dict[str, float]:
+        """Posterior mass on each expertise group (high / medium / low)."""
+        betas, p = self.marginal_beta()
+        out = {"high": 0.0, "medium": 0.0, "low": 0.0}
+        for b, q in zip(betas.tolist(), p.tolist(), strict=True):
+            out[expertise_group(b)] += q
+        return out
+
+    def trace(self, trajs: Trajectories, *, truth: int | None = None, max_block: int = 2**24) -> Trace:
+        """Live estimates: E[β], E[θ], entropy after each action of ``trajs``, in order.
+
+        Equivalent to streaming :meth:`update_action` over every pair, but vectorised.
+        ``max_block`` bounds the ``H × pairs`` block held in memory at once.
+        """
+        states, actions = _check_pairs(self.log_policy, trajs.state, trajs.action)
+        H, N = len(self.hypotheses), len(states)
+        theta, beta = self.hypotheses.theta, self.hypotheses.beta
+        mb = np.empty(N + 1)
+        mt = np.empty((N + 1, theta.shape[1]))
+        ent = np.empty(N + 1)
+        tp = np.full(N + 1, np.nan)
+        running = self.log_prior + self.log_likelihood
+        block = max(1, max_block // max(H, 1))
+
+        def stats(logw: np.ndarray, out: slice) -> None:  # logw [H, n]
+            lp = normalize_log(logw, axis=0)
+            p = np.exp(lp)
+            mb[out] = beta @ p
+            mt[out] = (theta.T @ p).T
+            ent[out] = -np.sum(np.where(p > 0, p * lp, 0.0), axis=0)
+            if truth is not None:
+                tp[out] = p[truth]
+
+        stats(running[:, None], slice(0, 1))
+        for start in range(0, N, block):
+            stop = min(N, start + block)
+            ll = pair_log_likelihoods(self.log_policy, states[start:stop], actions[start:stop])
+            cum = running[:, None] + np.cumsum(ll, axis=1)
+            if not np.isfinite(cum[:, -1]).any():
+                t = start + int(np.argmax(~np.isfinite(cum).any(axis=0)))
+                raise InputError(
+                    f"episode {trajs.episode[t]} step {trajs.step[t]}: action {actions[t]} in "
+                    f"state {states[t]} is impossible under every hypothesis"
+                )
+            stats(cum, slice(start + 1, stop + 1))
+            running = cum[:, -1]
+        return Trace(mb, mt, ent, tp)

@@ -1,0 +1,98 @@
+"""Result documents (JSON) and safe output files.
+
+A discrete-set result holds ``beta_hat``, ``theta_hat``, the MAP hypothesis, the
+marginals, every hypothesis with its ``log_likelihood``, ``log_posterior`` and
+``probability``, the settings used and the package version. A log-likelihood of −∞
+(a hypothesis that cannot produce an observed action) is written as ``null``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import __version__
+from .errors import InputError
+from .hypotheses import expertise_group
+from .inference.belief import DiscreteBelief, Trace
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _vec(v) -> list[float]:
+    return [float(x) for x in np.asarray(v, dtype=float).ravel()]
+
+
+def discrete_result(belief: DiscreteBelief, *, feature_names, settings: dict[str, Any],
+                    data: dict[str, Any] | None = None, trace: Trace | None = None,
+                    trace_index=None) -> dict[str, Any]:
+    """The JSON-ready result document of a discrete-set inference."""
+    hyp = belief.hypotheses
+    betas, pb = belief.marginal_beta()
+    thetas, pt = belief.marginal_theta()
+    theta_map, beta_map, p_map = belief.map_hypothesis()
+    lp, ll, p = belief.log_posterior, belief.log_likelihood, belief.probabilities
+    beta_hat = belief.mean_beta
+    doc: dict[str, Any] = {
+        "version": __version__,
+        "method": "discrete",
+        "feature_names": list(feature_names),
+        "beta_hat": beta_hat,
+        "theta_hat": _vec(belief.mean_theta),
+        "expertise_group": expertise_group(beta_hat),
+        "group_probabilities": belief.group_probabilities(),
+        "map": {"theta": _vec(theta_map), "beta": beta_map, "probability": p_map},
+        "entropy": belief.entropy,
+        "n_impossible": belief.n_impossible,
+        "marginals": {
+            "beta": {"values": _vec(betas), "probabilities": _vec(pb)},
+            "theta": {"values": [_vec(t) for t in thetas], "probabilities": _vec(pt)},
+        },
+        "hypotheses": [
+            {"theta": _vec(t), "beta": float(b), "log_likelihood": _num(l_),
+             "log_posterior": _num(q), "probability": float(pp)}
+            for t, b, l_, q, pp in zip(hyp.theta, hyp.beta, ll, lp, p, strict=True)
+        ],
+        "data": data or {},
+        "settings": settings,
+    }
+    if trace is not None:
+        episodes, steps = trace_index
+        doc["trace"] = [
+            {"episode": None if i == 0 else int(episodes[i - 1]),
+             "step": None if i == 0 else int(steps[i - 1]),
+             "beta_hat": float(trace.mean_beta[i]), "theta_hat": _vec(trace.mean_theta[i]),
+             "entropy": float(trace.entropy[i])}
+            for i in range(len(trace.mean_beta))
+        ]
+    return doc
+
+
+def check_writable(path: str | Path, *, force: bool) -> Path:
+    """Refuse to overwrite an existing file unless ``force``; the parent directory must exist."""
+    path = Path(path)
+    if path.exists() and not force:
+        raise InputError(f"{path}: already exists; pass --force to overwrite it")
+    if path.exists() and path.is_dir():
+        raise InputError(f"{path}: is a directory, expected a file path")
+    if not path.parent.exists():
+        raise InputError(f"{path.parent}: output directory does not exist")
+    return path
+
+
+def write_json(path: str | Path, doc: dict[str, Any]) -> None:
+    """Write ``doc`` as strict JSON (no NaN/Infinity), atomically."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(doc, fh, indent=1, allow_nan=False)
+        fh.write("\n")
+    os.replace(tmp, path)

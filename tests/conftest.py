@@ -1,0 +1,5 @@
+"""Shared test configuration: a headless matplotlib backend and small fixtures."""
+
+import matplotlib
+
+matplotlib.use("Agg")
