@@ -65,7 +65,10 @@ class ZoneMap:
     name: str = "<map>"
 
     def __post_init__(self) -> None:
-        g = np.asarray(self.grid, dtype="<U1")
+        raw = np.asarray(self.grid)
+        if raw.dtype.kind != "U" or any(len(c) != 1 for c in raw.ravel().tolist()):
+            raise InputError(f"{self.name}: map cells must be single characters")
+        g = raw.astype("<U1")
         if g.ndim != 2 or g.size == 0:
             raise InputError(f"{self.name}: map must be a non-empty rectangle of cells")
         bad = ~np.isin(g, LEGEND)
@@ -153,7 +156,7 @@ class ZoneMap:
 def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOAL_BONUS,
               gamma: float = DEFAULT_GAMMA) -> ZoneMap:
     """Parse a text map. Blank lines at the start and end are ignored; rows must be equally long."""
-    lines = text.splitlines()
+    lines = text.removeprefix("\ufeff").splitlines()
     first = 0
     while first < len(lines) and not lines[first].strip():
         first += 1
@@ -165,7 +168,7 @@ def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOA
     width = len(rows[0])
     for i, row in enumerate(rows):
         lineno = first + i + 1
-        if not row:
+        if not row.strip():
             raise InputError(f"{name}:{lineno}: blank line inside the map")
         for j, ch in enumerate(row):
             if ch not in LEGEND:
@@ -185,6 +188,8 @@ def read_settings(path: Path) -> dict[str, float]:
     """Read the optional settings TOML; unknown keys or wrong types raise :class:`InputError`."""
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (UTF-8)") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: invalid TOML ({exc})") from None
     out = {}
@@ -286,9 +291,12 @@ def generate_map(
     """
     if min_size < 3 or max_size < min_size:
         raise InputError(f"need 3 <= min_size <= max_size, got {min_size}, {max_size}")
+    for side, value in (("width", width), ("height", height)):
+        if value is not None and value < 3:
+            raise InputError(f"{side} must be at least 3, got {value}")
     for _ in range(100):
-        w = width or int(rng.integers(min_size, max_size + 1))
-        h = height or int(rng.integers(min_size, max_size + 1))
+        w = width if width is not None else int(rng.integers(min_size, max_size + 1))
+        h = height if height is not None else int(rng.integers(min_size, max_size + 1))
         g = np.full((h, w), FREE, dtype="<U1")
 
         def rect(max_frac: float, w: int = w, h: int = h) -> tuple[int, int, int, int]:

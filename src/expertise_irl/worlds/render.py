@@ -1,0 +1,513 @@
+"""Figures for zone maps, demonstrations and posteriors (matplotlib, Agg).
+
+Colours follow the paper's Fig. 1: red = avoid, black = obstacle, yellow =
+slow-down, purple = high traffic, light blue = road with a preferred direction
+(an arrow in each road cell), green dot = goal. Maps are drawn in image
+orientation: x = column to the right, y = row downwards, row 0 at the top, and
+cell ``(x, y)`` is centred on data coordinates ``(x, y)``.
+
+The ``draw_*`` functions draw onto a given :class:`~matplotlib.axes.Axes` and
+return it. The ``render_*_png`` functions build a :class:`~matplotlib.figure.Figure`
+directly (not through :mod:`matplotlib.pyplot`), so no figure is registered with
+pyplot and nothing is left open after they return; they never change the
+global backend.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import to_rgb
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch, Rectangle
+
+from ..errors import InputError
+from .zones import (
+    AVOID,
+    FREE,
+    GOAL,
+    OBSTACLE,
+    ROAD_DIRECTIONS,
+    SLOW,
+    START,
+    TRAFFIC,
+    ZoneMap,
+)
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from ..demos import Trajectories
+    from ..mdp import TabularMDP
+
+#: Fill colour of each cell character (roads share one colour).
+ZONE_COLORS: dict[str, str] = {
+    FREE: "#fafafa",
+    START: "#fafafa",
+    GOAL: "#fafafa",
+    OBSTACLE: "#1a1a1a",
+    AVOID: "#e4544a",
+    SLOW: "#f4d03f",
+    TRAFFIC: "#9b72cf",
+    **dict.fromkeys(ROAD_DIRECTIONS, "#9fd4f2"),
+}
+GOAL_COLOR = "#1e9e3a"
+ARROW_COLOR = "#1d5a8c"
+GRID_COLOR = "#cfcfcf"
+#: Unit (dx, dy) of each road character, image orientation (y grows downwards).
+ROAD_VECTORS: dict[str, tuple[int, int]] = {">": (1, 0), "<": (-1, 0), "^": (0, -1), "v": (0, 1)}
+#: Default colours of demonstrations: dark, saturated, distinct from the zone fills.
+PATH_COLORS = ("#0b2e59", "#d9480f", "#0b7261", "#7b1e62", "#3b3b3b", "#5c4d00", "#1c6fb3")
+ROAD_ARROWS_GID = "road-arrows"
+_LEGEND = (  # (characters, label) in legend order
+    ((OBSTACLE,), "obstacle"),
+    ((AVOID,), "avoid"),
+    ((SLOW,), "slow-down"),
+    ((TRAFFIC,), "high traffic"),
+    (tuple(ROAD_DIRECTIONS), "road (→ direction)"),
+)
+DPI = 120
+
+
+# --------------------------------------------------------------------------- map
+def draw_map(ax: Axes, zone_map: ZoneMap, *, show_grid: bool = True, legend: bool = True) -> Axes:
+    """Draw the cells of a zone map in the paper's colours.
+
+    Parameters
+    ----------
+    ax : Axes
+        Target axes; its limits are set to the grid, y inverted (row 0 on top).
+    zone_map : ZoneMap
+        The map to draw.
+    show_grid : bool, default True
+        Thin lines between cells.
+    legend : bool, default True
+        A compact legend, below the map, of the zone types present.
+
+    Returns
+    -------
+    Axes
+        ``ax``. Road arrows are one :class:`~matplotlib.quiver.Quiver` with gid
+        ``"road-arrows"`` (``X, Y`` cell centres, ``U, V`` unit directions, V > 0 = down).
+    """
+    g = zone_map.grid
+    h, w = g.shape
+    rgb = np.zeros((h, w, 3))
+    for ch, col in ZONE_COLORS.items():
+        rgb[g == ch] = to_rgb(col)
+    ax.imshow(rgb, extent=(-0.5, w - 0.5, h - 0.5, -0.5), origin="upper",
+              interpolation="nearest", zorder=0)
+    if show_grid:
+        ax.vlines(np.arange(w + 1) - 0.5, -0.5, h - 0.5, colors=GRID_COLOR, lw=0.4, zorder=1)
+        ax.hlines(np.arange(h + 1) - 0.5, -0.5, w - 0.5, colors=GRID_COLOR, lw=0.4, zorder=1)
+
+    road = np.isin(g, tuple(ROAD_VECTORS))
+    if road.any():
+        ys, xs = np.nonzero(road)
+        uv = np.array([ROAD_VECTORS[c] for c in g[ys, xs]], dtype=float)
+        q = ax.quiver(xs, ys, uv[:, 0], uv[:, 1], angles="xy", scale_units="xy", scale=1 / 0.55,
+                      pivot="middle", color=ARROW_COLOR, width=0.09, units="xy",
+                      headwidth=3.2, headlength=3.0, headaxislength=2.7, zorder=3)
+        q.set_gid(ROAD_ARROWS_GID)
+
+    for y, x in np.argwhere(g == START):
+        ax.add_patch(Rectangle((x - 0.27, y - 0.27), 0.54, 0.54, fill=False, ec="#6b6b6b",
+                               lw=0.9, zorder=3, gid="start"))
+    for y, x in np.argwhere(g == GOAL):
+        ax.add_patch(Circle((x, y), 0.36, fc=GOAL_COLOR, ec="white", lw=0.8, zorder=6, gid="goal"))
+
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for sp in ax.spines.values():
+        sp.set_linewidth(0.6)
+        sp.set_color("#7a7a7a")
+    if legend:
+        handles = map_legend_handles(zone_map)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01),
+                  ncol=min(len(handles), 4), frameon=False, fontsize=7.5, handlelength=1.2,
+                  handleheight=1.0, columnspacing=1.0, borderaxespad=0.2)
+    return ax
+
+
+def map_legend_handles(zone_map: ZoneMap) -> list:
+    """Legend handles for the zone types, start cells and goals present in ``zone_map``."""
+    g = zone_map.grid
+    handles: list = [
+        Patch(fc=ZONE_COLORS[chars[0]], ec="#7a7a7a", lw=0.5, label=label)
+        for chars, label in _LEGEND if np.isin(g, chars).any()
+    ]
+    if (g == START).any():
+        handles.append(Line2D([], [], ls="", marker="s", ms=6, mfc="none", mec="#6b6b6b",
+                              label="start"))
+    handles.append(Line2D([], [], ls="", marker="o", ms=7, mfc=GOAL_COLOR, mec="white",
+                          label="goal"))
+    return handles
+
+
+# ------------------------------------------------------------------ trajectories
+def _jitter_offsets(n: int, radius: float) -> np.ndarray:
+    """``[n, 2]`` deterministic offsets on a sunflower (Vogel) spiral; the first is 0."""
+    i = np.arange(n)
+    r = radius * np.sqrt(i / max(n - 1, 1))
+    phi = i * np.pi * (3.0 - np.sqrt(5.0))  # golden angle
+    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
+
+
+def draw_trajectories(
+    ax: Axes,
+    zone_map: ZoneMap,
+    paths_xy: Sequence[np.ndarray],
+    *,
+    color: str | Sequence[str] | None = None,
+    alpha: float = 0.75,
+    jitter: float = 0.2,
+    linewidth: float = 1.4,
+) -> Axes:
+    """Draw demonstrations as polylines through cell centres, each with a start marker.
+
+    Parameters
+    ----------
+    ax : Axes
+        Axes holding the map (see :func:`draw_map`).
+    zone_map : ZoneMap
+        The map the paths live on; used to check that every point is a cell.
+    paths_xy : sequence of ndarray
+        One ``[T, 2]`` integer array of (x, y) cells per episode.
+    color : str or sequence of str, optional
+        One colour for all paths, or one per path; default cycles :data:`PATH_COLORS`.
+    alpha : float, default 0.75
+        Line opacity.
+    jitter : float, default 0.2
+        Largest offset (in cells) of an episode from the cell centres. Offsets are
+        deterministic (a golden-angle spiral over the episode index), so overlapping
+        paths stay distinguishable and the figure is reproducible.
+    linewidth : float, default 1.4
+
+    Returns
+    -------
+    Axes
+        ``ax``; path ``i`` is the Line2D with gid ``"path-i"``.
+    """
+    n = len(paths_xy)
+    if isinstance(color, str):
+        colors = [color] * n
+    elif color is None:
+        colors = [PATH_COLORS[i % len(PATH_COLORS)] for i in range(n)]
+    else:
+        colors = list(color)
+        if len(colors) != n:
+            raise ValueError(f"{len(colors)} colours for {n} paths")
+    offsets = _jitter_offsets(n, jitter)
+    for i, p in enumerate(paths_xy):
+        p = np.asarray(p)
+        if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] == 0:
+            raise InputError(f"path {i}: expected a non-empty [T, 2] array of cells, got {p.shape}")
+        off_grid = (p[:, 0] < 0) | (p[:, 0] >= zone_map.width) | (p[:, 1] < 0) | (
+            p[:, 1] >= zone_map.height)
+        if off_grid.any():
+            t = int(np.argmax(off_grid))
+            raise InputError(f"path {i}, step {t}: cell {tuple(p[t].tolist())} is off the map")
+        xy = p.astype(float) + offsets[i]
+        ax.plot(xy[:, 0], xy[:, 1], color=colors[i], alpha=alpha, lw=linewidth,
+                solid_joinstyle="round", solid_capstyle="round", zorder=4, gid=f"path-{i}")
+        ax.plot(xy[0, 0], xy[0, 1], ls="", marker="o", ms=4.5, mfc=colors[i], mec="white",
+                mew=0.7, zorder=5, gid=f"start-{i}")
+    return ax
+
+
+def paths_to_xy(trajs: Trajectories, mdp: TabularMDP) -> list[np.ndarray]:
+    """``[T_i + 1, 2]`` (x, y) cells visited in each episode, final state included.
+
+    Raises :class:`InputError` if the MDP has no ``state_xy`` or an episode's last
+    action is unavailable (so its final state is undefined).
+    """
+    if mdp.state_xy is None:
+        raise InputError(f"{mdp.source}: the MDP has no grid coordinates (state_xy)")
+    out = []
+    for i, states in enumerate(trajs.paths(mdp)):
+        states = np.asarray(states, dtype=np.int64)
+        if (states < 0).any():
+            raise InputError(f"episode {i}: its last action is unavailable, no final state")
+        out.append(mdp.state_xy[states])
+    return out
+
+
+# --------------------------------------------------------------------- posteriors
+def _check_probs(probs, n: int, what: str) -> np.ndarray:
+    p = np.asarray(probs, dtype=float)
+    if p.shape != (n,):
+        raise ValueError(f"{what}: expected {n} probabilities, got shape {p.shape}")
+    if not np.all(np.isfinite(p)) or (p < 0).any() or p.sum() <= 0:
+        raise ValueError(f"{what}: probabilities must be finite, non-negative, not all 0")
+    return p
+
+
+def _fmt(v: float) -> str:
+    """Compact number: ``0``, ``1``, ``.33``."""
+    s = f"{v:.2f}".rstrip("0").rstrip(".")
+    return s[1:] if s.startswith("0.") else s or "0"
+
+
+def draw_beta_marginal(ax: Axes, betas, probs, *, beta_true: float | None = None) -> Axes:
+    """Bar chart of the posterior marginal over β, one categorical bar per value.
+
+    Parameters
+    ----------
+    ax : Axes
+    betas : array_like, shape [B]
+        The temperatures, drawn in the given order and labelled with ``%g``.
+    probs : array_like, shape [B]
+        Their probabilities.
+    beta_true : float, optional
+        The true β; its bar is highlighted (or noted in the title if not in ``betas``).
+
+    Returns
+    -------
+    Axes
+        ``ax``; the highlighted bar has gid ``"beta-true"``.
+    """
+    b = np.asarray(betas, dtype=float).ravel()
+    p = _check_probs(probs, b.size, "draw_beta_marginal")
+    x = np.arange(b.size)
+    bars = ax.bar(x, p, color="#9aa7b8", edgecolor="#4a5568", lw=0.6, width=0.7)
+    title = rf"posterior of $\beta$   (E[$\beta$] = {float(b @ p / p.sum()):.3g})"
+    if beta_true is not None:
+        hit = np.flatnonzero(np.isclose(b, beta_true, rtol=1e-9, atol=0))
+        if hit.size:
+            bars[hit[0]].set_color("#c0392b")
+            bars[hit[0]].set_edgecolor("#6e1f17")
+            bars[hit[0]].set_gid("beta-true")
+            bars[hit[0]].set_label(rf"true $\beta^*$ = {beta_true:g}")
+            ax.legend(loc="upper right", fontsize=7.5, frameon=False)
+        else:
+            title += rf",  $\beta^*$ = {beta_true:g} (not in set)"
+    for xi, pi in zip(x, p, strict=True):
+        ax.annotate(f"{pi:.2f}", (xi, pi), xytext=(0, 2), textcoords="offset points",
+                    ha="center", va="bottom", fontsize=7, color="#333")
+    ax.set_xticks(x, [f"{v:g}" for v in b])
+    ax.set_xlabel(r"expertise temperature $\beta$  (low = expert)", fontsize=8.5)
+    ax.set_ylabel("probability", fontsize=8.5)
+    ax.set_ylim(0, max(1.0, float(p.max()) + 0.1))
+    ax.set_title(title, fontsize=9.5)
+    _tidy(ax)
+    return ax
+
+
+def _aggregate(thetas: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sum the probabilities of identical θ rows (to 1e-9)."""
+    keys = np.round(thetas, 9) + 0.0
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    return uniq, np.bincount(inv.ravel(), weights=p, minlength=len(uniq))
+
+
+def draw_theta_summary(
+    ax: Axes,
+    thetas,
+    probs,
+    feature_names: Sequence[str],
+    *,
+    theta_true=None,
+    top: int = 8,
+    ax_top: Axes | None = None,
+) -> tuple[Axes, Axes | None]:
+    """Posterior mean E[θ] against θ* per feature, and the most probable θ vectors.
+
+    Parameters
+    ----------
+    ax : Axes
+        Receives grouped bars per feature: E[θ] (probability-weighted mean of ``thetas``)
+        and, if given, θ*.
+    thetas : array_like, shape [n, K]
+        θ vectors (rows); identical rows are merged and their probabilities summed.
+    probs : array_like, shape [n]
+        Probability of each row (normalised here if it does not sum to 1).
+    feature_names : sequence of str, length K
+    theta_true : array_like, shape [K], optional
+        True θ*; drawn as a second bar per feature, and its row starred in the top list.
+    top : int, default 8
+        How many most probable θ vectors to list (0: none).
+    ax_top : Axes, optional
+        Axes for that list; by default a new axes is split off below ``ax``.
+
+    Returns
+    -------
+    (Axes, Axes or None)
+        ``ax`` and the axes with the top-θ list (None when ``top == 0``).
+    """
+    th = np.atleast_2d(np.asarray(thetas, dtype=float))
+    n, K = th.shape
+    p = _check_probs(probs, n, "draw_theta_summary")
+    p = p / p.sum()
+    names = list(feature_names)
+    if len(names) != K:
+        raise ValueError(f"{len(names)} feature names for {K} features")
+    true = None if theta_true is None else np.asarray(theta_true, dtype=float).ravel()
+    if true is not None and true.shape != (K,):
+        raise ValueError(f"theta_true must have {K} components, got {true.shape}")
+
+    mean = p @ th
+    x = np.arange(K)
+    width = 0.38 if true is not None else 0.6
+    shift = width / 2 if true is not None else 0.0
+    ax.bar(x - shift, mean, width, color="#4c72b0", label=r"posterior mean E[$\theta$]", gid="mean")
+    if true is not None:
+        ax.bar(x + shift, true, width, color="#dd8452", label=r"true $\theta^*$", gid="true")
+    ax.set_xticks(x, names, fontsize=8)
+    ax.set_ylabel("weight", fontsize=8.5)
+    ax.set_ylim(0, max(1.0, float(np.max(mean)), float(np.max(true)) if true is not None else 0) * 1.05)
+    ax.set_title(r"reward weights $\theta$", fontsize=9.5)
+    ax.legend(fontsize=7.5, frameon=False, loc="upper right")
+    _tidy(ax)
+
+    if top <= 0:
+        return ax, None
+    if ax_top is None:
+        from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+        ax_top = make_axes_locatable(ax).append_axes("bottom", size="90%", pad=0.45)
+    uniq, pu = _aggregate(th, p)
+    order = np.argsort(-pu, kind="stable")[:top]
+    labels = ["(" + " ".join(_fmt(v) for v in uniq[i]) + ")" for i in order]
+    colors = ["#4c72b0"] * len(order)
+    if true is not None:
+        t_norm = true / true.sum() if true.sum() > 0 else true
+        for j, i in enumerate(order):
+            if np.allclose(uniq[i], true, atol=1e-6) or np.allclose(uniq[i], t_norm, atol=1e-6):
+                labels[j] = "★ " + labels[j]
+                colors[j] = "#dd8452"
+    y = np.arange(len(order))
+    ax_top.barh(y, pu[order], color=colors, height=0.7)
+    for yi, v in zip(y, pu[order], strict=True):
+        ax_top.annotate(f"{v:.2f}", (v, yi), xytext=(3, 0), textcoords="offset points",
+                        va="center", fontsize=6.5, color="#333")
+    ax_top.set_yticks(y, labels, fontsize=7, family="monospace")
+    ax_top.invert_yaxis()
+    ax_top.set_xlim(0, min(1.0, float(pu[order].max()) * 1.25 + 0.02))
+    ax_top.set_xlabel("probability", fontsize=8.5)
+    ax_top.set_title(rf"top {len(order)} $\theta$  ({', '.join(names)})", fontsize=8.5)
+    _tidy(ax_top)
+    return ax, ax_top
+
+
+def _tidy(ax: Axes) -> None:
+    ax.spines[["top", "right"]].set_visible(False)
+    ax.tick_params(labelsize=7.5, length=2.5)
+
+
+# ------------------------------------------------------------------------ figures
+def _new_figure(figsize: tuple[float, float]) -> Figure:
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _map_size(zone_map: ZoneMap, max_w: float, max_h: float) -> tuple[float, float]:
+    """Inches for the map panel: ~0.42 in per cell (more for tiny maps), within ``max_w`` × ``max_h``."""
+    w, h = zone_map.width, zone_map.height
+    cell = min(max(0.42, 3.5 / max(w, h)), max_w / w, max_h / h)
+    return cell * w, cell * h
+
+
+def _save(fig: Figure, path: str | Path) -> Path:
+    path = Path(path)
+    fig.savefig(path, dpi=DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    fig.clear()
+    return path
+
+
+def render_map_png(
+    zone_map: ZoneMap,
+    path: str | Path,
+    *,
+    trajectories_xy: Sequence[np.ndarray] | None = None,
+    title: str | None = None,
+) -> Path:
+    """Save a PNG of the map, optionally with demonstrations on top.
+
+    Parameters
+    ----------
+    zone_map : ZoneMap
+    path : str or Path
+        Output file (PNG, dpi 120).
+    trajectories_xy : sequence of ndarray, optional
+        ``[T, 2]`` cell paths (see :func:`paths_to_xy`).
+    title : str, optional
+        Defaults to the map's name.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    mw, mh = _map_size(zone_map, 9.0, 8.0)
+    fig = _new_figure((max(mw + 0.3, 5.2), mh + 1.1))
+    ax = fig.add_subplot()
+    draw_map(ax, zone_map)
+    if trajectories_xy is not None:
+        draw_trajectories(ax, zone_map, trajectories_xy)
+    ax.set_title(title if title is not None else zone_map.name, fontsize=10)
+    return _save(fig, path)
+
+
+def render_summary_png(
+    path: str | Path,
+    zone_map: ZoneMap,
+    paths_xy: Sequence[np.ndarray],
+    betas,
+    beta_probs,
+    thetas,
+    theta_probs,
+    feature_names: Sequence[str],
+    *,
+    theta_true=None,
+    beta_true: float | None = None,
+    title: str | None = None,
+    top: int = 8,
+) -> Path:
+    """One figure: map with demonstrations (left); β marginal and θ summary (right).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output PNG (dpi 120).
+    zone_map, paths_xy
+        As for :func:`draw_map` and :func:`draw_trajectories`.
+    betas, beta_probs
+        As for :func:`draw_beta_marginal`.
+    thetas, theta_probs, feature_names
+        As for :func:`draw_theta_summary` (typically the θ marginal of the posterior).
+    theta_true, beta_true : optional
+        Ground truth, highlighted when given.
+    title : str, optional
+        Figure title.
+    top : int, default 8
+        Number of most probable θ vectors listed.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    mw, mh = _map_size(zone_map, 7.0, 5.8)
+    fig = _new_figure((mw + 5.4, max(mh + 1.3, 6.8)))
+    gs = fig.add_gridspec(3, 2, width_ratios=[mw, 5.0], height_ratios=[1.0, 1.0, 1.1])
+    ax_map = fig.add_subplot(gs[:, 0])
+    draw_map(ax_map, zone_map)
+    draw_trajectories(ax_map, zone_map, paths_xy)
+    n = len(paths_xy)
+    ax_map.set_title(f"{zone_map.name}: {n} demonstration{'s' if n != 1 else ''}", fontsize=9.5)
+    draw_beta_marginal(fig.add_subplot(gs[0, 1]), betas, beta_probs, beta_true=beta_true)
+    ax_theta = fig.add_subplot(gs[1, 1] if top > 0 else gs[1:, 1])
+    draw_theta_summary(ax_theta, thetas, theta_probs, feature_names, theta_true=theta_true,
+                       top=top, ax_top=fig.add_subplot(gs[2, 1]) if top > 0 else None)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return _save(fig, path)
