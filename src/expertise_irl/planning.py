@@ -106,8 +106,10 @@ def _solve_chunk(prep: _Prepared, theta, beta, gamma, tol, max_iter, v0):
 
     def backup(v):
         q = r + gamma * v[:, prep.next_idx]
-        m = jnp.max(q, axis=-1)
-        return m + jnp.log(jnp.sum(jnp.exp(q - m[..., None]), axis=-1)), q
+        m = jnp.max(q, axis=-1, keepdims=True)
+        z = q - m
+        log_norm = jnp.log(jnp.sum(jnp.exp(z), axis=-1, keepdims=True))
+        return (m + log_norm)[..., 0], z - log_norm
 
     def cond(carry):
         _, it, done, _ = carry
@@ -117,7 +119,7 @@ def _solve_chunk(prep: _Prepared, theta, beta, gamma, tol, max_iter, v0):
         v, it, done, delta = carry
         v_new, _ = backup(v)
         d = jnp.max(jnp.abs(v_new - v), axis=-1)
-        thresh = jnp.maximum(base_thresh, 64.0 * eps * jnp.max(jnp.abs(v_new), axis=-1))
+        thresh = jnp.maximum(base_thresh, 8.0 * eps * jnp.max(jnp.abs(v_new), axis=-1))
         v = jnp.where(done[:, None], v, v_new)
         delta = jnp.where(done, delta, d)
         it = it + (~done).astype(it.dtype)
@@ -127,10 +129,10 @@ def _solve_chunk(prep: _Prepared, theta, beta, gamma, tol, max_iter, v0):
     H = theta.shape[0]
     init = (v0.astype(dtype), jnp.zeros(H, jnp.int64), jnp.zeros(H, bool), jnp.full(H, jnp.inf, dtype))
     v, it, done, delta = jax.lax.while_loop(cond, body, init)
-    # One more backup: normalising q by its own log-partition makes every policy row sum
-    # to 1 to machine precision (the returned v is that log-partition).
-    v, q = backup(v)
-    log_pi = jnp.where(prep.out_mask[None], q - v[..., None], -jnp.inf)
+    # One more backup; the log-policy is (q - m) - log Σ exp(q - m), normalised by its own
+    # log-partition, so rows sum to 1 to machine precision even when |q| is large.
+    v, log_pi = backup(v)
+    log_pi = jnp.where(prep.out_mask[None], log_pi, -jnp.inf)
     return v, log_pi, it, jnp.where(done, 0.0, delta)
 
 
@@ -153,6 +155,15 @@ def _as_hypotheses(mdp: TabularMDP, theta, beta) -> tuple[np.ndarray, np.ndarray
     if not np.all(np.isfinite(beta)) or np.any(beta <= 0):
         bad = beta[~(np.isfinite(beta) & (beta > 0))][0]
         raise InputError(f"beta must be a finite number > 0, got {bad}")
+    fmax = float(np.abs(mdp.features).max())
+    with np.errstate(over="ignore"):
+        rmax = np.abs(theta).sum(axis=1) * fmax / beta
+    if not np.all(np.isfinite(rmax)) or np.any(rmax > 1e150):
+        h = int(np.flatnonzero(~np.isfinite(rmax) | (rmax > 1e150))[0])
+        raise InputError(
+            f"hypothesis {h}: reward scale |θ|·|φ|/β = {rmax[h]:.3g} overflows; "
+            "use θ and β of ordinary magnitude (only θ/β matters)"
+        )
     return theta, beta
 
 
@@ -198,7 +209,8 @@ def solve(
             accurate to within 2·tol. Floored at the floating-point resolution of the values.
         max_iter: backup cap per hypothesis; default from :func:`default_max_iter`.
         chunk_size: hypotheses solved at once; default from :func:`default_chunk_size`.
-        dtype: ``"float64"`` (default) or ``"float32"`` (faster, ~1e-6 relative accuracy).
+        dtype: ``"float64"`` (default) or ``"float32"`` (an explicit speed option; values are then
+            accurate to about 1e-4 relative, limited by float32 resolution over ~1/(1-γ) backups).
         v_init: optional ``[H, S]`` warm start for V (reward units).
         progress: called as ``progress(done, total)`` after each chunk.
 
@@ -222,6 +234,8 @@ def solve(
         v_init = np.asarray(v_init, dtype=np.float64)
         if v_init.shape != (H, S):
             raise InputError(f"v_init must have shape [H, S] = [{H}, {S}], got {v_init.shape}")
+        if not np.all(np.isfinite(v_init)):
+            raise InputError("v_init must be finite")
         v_scaled0 = v_init / beta[:, None]
     else:
         v_scaled0 = np.zeros((H, S))
@@ -244,8 +258,8 @@ def solve(
         )
         n = stop - start
         delta = np.asarray(delta)[:n]
-        if np.any(delta > 0):
-            h = int(np.flatnonzero(delta > 0)[0])
+        if not np.all(delta == 0):  # also catches NaN
+            h = int(np.flatnonzero(~(delta == 0))[0])
             raise ConvergenceError(
                 f"soft value iteration did not converge for hypothesis {start + h} "
                 f"(theta={np.round(theta[start + h], 6).tolist()}, beta={beta[start + h]:g}) "
