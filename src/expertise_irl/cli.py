@@ -17,6 +17,7 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -36,8 +37,14 @@ out = Console()
 err = Console(stderr=True)
 
 
+def _say(message: str) -> None:
+    """Print plain text (no rich markup: θ vectors in brackets must print as they are)."""
+    out.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
 def _fail(message: str, code: int = 2) -> None:
-    err.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    err.print("[bold red]error:[/] ", end="", highlight=False)
+    err.print(message, markup=False, highlight=False, soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -147,9 +154,9 @@ def demo(
     elapsed = time.perf_counter() - t0
     s = run.summary()
     names = run.mdp.feature_names
-    table = Table(title=f"expertise-irl demo (seed {seed}) on {run.zone_map.name}: "
+    table = Table(title=escape(f"expertise-irl demo (seed {seed}) on {run.zone_map.name}: "
                   f"{run.mdp.n_states} states, {len(run.hypotheses)} hypotheses, "
-                  f"{run.trajectories.n_episodes} episodes / {len(run.trajectories)} actions")
+                  f"{run.trajectories.n_episodes} episodes / {len(run.trajectories)} actions"))
     table.add_column("")
     table.add_column("true", justify="right")
     table.add_column("inferred", justify="right")
@@ -182,7 +189,7 @@ def demo(
     doc["metrics"] = {k_: s[k_] for k_ in ("expertise_distance", "cosine_similarity", "policy_regret")}
     doc["run_time_s"] = elapsed
     write_json(js, doc)
-    out.print(f"wrote {png} and {js} ({elapsed:.1f} s)")
+    _say(f"wrote {png} and {js} ({elapsed:.1f} s)")
 
 
 @app.command("export-mdp")
@@ -199,7 +206,7 @@ def export_mdp(
     check_writable(out_path, force=force)
     mdp = resolve_map(map_spec).to_mdp()
     mdp.save(out_path)
-    out.print(f"wrote {out_path}: {mdp.n_states} states, {mdp.n_actions} actions, "
+    _say(f"wrote {out_path}: {mdp.n_states} states, {mdp.n_actions} actions, "
               f"features {', '.join(mdp.feature_names)}, gamma {mdp.gamma:g}")
 
 
@@ -227,7 +234,7 @@ def simulate(
     _check_beta(beta)
     trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps)
     write_demos_csv(out_path, trajs, mdp)
-    out.print(f"wrote {out_path}: {trajs.n_episodes} episodes, {len(trajs)} actions "
+    _say(f"wrote {out_path}: {trajs.n_episodes} episodes, {len(trajs)} actions "
               f"(θ*={np.round(th, 4).tolist()}, β*={beta:g})")
 
 
@@ -290,10 +297,10 @@ def infer(
     doc["run_time_s"] = elapsed
     write_json(out_path, doc)
     theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(mdp.feature_names, post.mean_theta, strict=True))
-    out.print(f"β̂ = {post.mean_beta:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
+    _say(f"β̂ = {post.mean_beta:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
     if post.n_impossible:
-        out.print(f"note: {post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
-    out.print(f"wrote {out_path} ({len(hyp)} hypotheses, {len(trajs)} actions, {elapsed:.1f} s)")
+        _say(f"note: {post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
+    _say(f"wrote {out_path} ({len(hyp)} hypotheses, {len(trajs)} actions, {elapsed:.1f} s)")
 
 
 def _chunk_for_progress(mdp, n_hyp: int) -> int:
@@ -324,7 +331,7 @@ def render(
         mdp = zone_map.to_mdp()
         paths = paths_to_xy(read_demos_csv(demos, mdp), mdp)
     render_map_png(zone_map, out_path, trajectories_xy=paths, title=zone_map.name)
-    out.print(f"wrote {out_path}")
+    _say(f"wrote {out_path}")
 
 
 @app.command()
@@ -335,12 +342,12 @@ def maps() -> None:
 
     for name in names():
         m = load_bundled(name)
-        out.print(f"{name:12s} {m.width}×{m.height}, {int(m.passable.sum())} states")
+        _say(f"{name:12s} {m.width}×{m.height}, {int(m.passable.sum())} states")
 
 
 def _version(value: bool) -> None:
     if value:
-        out.print(f"expertise-irl {__version__}")
+        _say(f"expertise-irl {__version__}")
         raise typer.Exit()
 
 

@@ -42,6 +42,8 @@ def regret_from_values(v_true: np.ndarray, v_hat: np.ndarray, terminal: np.ndarr
     """Eq. 17 from two value vectors ``[S]`` (see the module docstring)."""
     keep = ~np.asarray(terminal, dtype=bool)
     vt, vh = np.asarray(v_true)[keep], np.asarray(v_hat)[keep]
+    if vt.size == 0:
+        raise InputError("policy regret is undefined: every state is terminal")
     scale = np.max(np.abs(vt))
     if scale == 0:
         raise InputError("policy regret is undefined: the true value function is zero everywhere")

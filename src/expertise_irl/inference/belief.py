@@ -47,7 +47,14 @@ def normalize_log(logw: np.ndarray, axis: int = 0) -> np.ndarray:
     return logw - logsumexp(logw, axis=axis, keepdims=True)
 
 
-def _check_pairs(log_policy: np.ndarray, states, actions) -> tuple[np.ndarray, np.ndarray]:
+def _entropy(p: np.ndarray, lp: np.ndarray, axis: int = 0) -> np.ndarray:
+    """−Σ p log p, with 0 log 0 = 0 (no 0·(−∞) is ever evaluated)."""
+    terms = np.multiply(p, lp, out=np.zeros_like(p), where=p > 0)
+    return -np.sum(terms, axis=axis)
+
+
+def _check_pairs(log_policy: np.ndarray, states, actions, *, label=None) -> tuple[np.ndarray, np.ndarray]:
+    """Validate pairs against the table's shape. ``label(i)`` names pair i in messages."""
     states = np.atleast_1d(np.asarray(states, dtype=np.int64))
     actions = np.atleast_1d(np.asarray(actions, dtype=np.int64))
     _, S, A = log_policy.shape
@@ -56,11 +63,16 @@ def _check_pairs(log_policy: np.ndarray, states, actions) -> tuple[np.ndarray, n
     bad = (states < 0) | (states >= S) | (actions < 0) | (actions >= A)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
+        at = label(i) if label is not None else f"pair {i}"
         raise InputError(
-            f"step {i}: (state {states[i]}, action {actions[i]}) is outside the MDP "
+            f"{at}: (state {states[i]}, action {actions[i]}) is outside the MDP "
             f"({S} states, {A} actions)"
         )
     return states, actions
+
+
+def _traj_label(trajs: Trajectories):
+    return lambda i: f"episode {trajs.episode[i]} step {trajs.step[i]}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,6 +123,8 @@ class DiscreteBelief:
         log_policy = np.asarray(log_policy, dtype=np.float64)
         if log_policy.ndim != 3 or log_policy.shape[0] != H:
             raise InputError(f"log_policy must have shape [H={H}, S, A], got {log_policy.shape}")
+        if np.isnan(log_policy).any() or (log_policy > 1e-9).any():
+            raise InputError("log_policy must hold log-probabilities (no NaN, none above 0)")
         if prior is None:
             log_prior = np.full(H, -np.log(H))
         else:
@@ -126,7 +140,8 @@ class DiscreteBelief:
     # ----------------------------------------------------------------- updates
     def update_pairs(self, states, actions, *, episode: int | None = None) -> DiscreteBelief:
         """Condition on (state, action) pairs (one trajectory or any batch of them)."""
-        states, actions = _check_pairs(self.log_policy, states, actions)
+        label = (lambda i: f"episode {episode} step {i}") if episode is not None else None
+        states, actions = _check_pairs(self.log_policy, states, actions, label=label)
         ll = pair_log_likelihoods(self.log_policy, states, actions)  # [H, N]
         total = self.log_likelihood + ll.sum(axis=1)
         alive = np.isfinite(self.log_prior + total)
@@ -154,6 +169,7 @@ class DiscreteBelief:
 
     def update(self, trajs: Trajectories, *, per_action: bool = False) -> DiscreteBelief:
         """Condition on every episode of ``trajs``, one trajectory (or one action) at a time."""
+        _check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         b = self
         for e, (states, actions) in zip(trajs.episode_ids, trajs.episodes(), strict=True):
             if per_action:
@@ -216,8 +232,7 @@ class DiscreteBelief:
     def entropy(self) -> float:
         """Posterior entropy in nats."""
         lp = self.log_posterior
-        p = np.exp(lp)
-        return float(-np.sum(np.where(p > 0, p * lp, 0.0)))
+        return float(_entropy(np.exp(lp), lp))
 
     def group_probabilities(self) -> dict[str, float]:
         """Posterior mass on each expertise group (high / medium / low)."""
@@ -233,7 +248,7 @@ class DiscreteBelief:
         Equivalent to streaming :meth:`update_action` over every pair, but vectorised.
         ``max_block`` bounds the ``H × pairs`` block held in memory at once.
         """
-        states, actions = _check_pairs(self.log_policy, trajs.state, trajs.action)
+        states, actions = _check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         H, N = len(self.hypotheses), len(states)
         theta, beta = self.hypotheses.theta, self.hypotheses.beta
         mb = np.empty(N + 1)
@@ -248,7 +263,7 @@ class DiscreteBelief:
             p = np.exp(lp)
             mb[out] = beta @ p
             mt[out] = (theta.T @ p).T
-            ent[out] = -np.sum(np.where(p > 0, p * lp, 0.0), axis=0)
+            ent[out] = _entropy(p, lp, axis=0)
             if truth is not None:
                 tp[out] = p[truth]
 
