@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -20,13 +21,41 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+from typer.core import TyperGroup
 
 from . import __version__
 from .errors import InputError
 from .planning import ConvergenceError
 
+
+class _OneLineErrors(TyperGroup):
+    """Report command-line parsing errors (bad option values, missing options) as one line.
+
+    Click's default is a multi-line usage panel; our contract is ``error: ...`` and exit 2.
+    """
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,
+                              standalone_mode=False, **extra)
+        except Exception as exc:
+            if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):  # click's UsageError & co.
+                message = exc.format_message()
+                if message:  # empty when help was shown for a bare command
+                    _print_error(f"{message} (see --help)")
+                sys.exit(exc.exit_code)
+            if type(exc).__name__ == "Abort":
+                _print_error("aborted")
+                sys.exit(1)
+            raise
+        if not standalone_mode:
+            return rv
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
     name="expertise-irl",
+    cls=_OneLineErrors,
     help="Infer what a person wants (reward weights θ) and how expert they are (temperature β) "
     "from demonstrations.",
     no_args_is_help=True,
@@ -42,9 +71,13 @@ def _say(message: str) -> None:
     out.print(message, markup=False, highlight=False, soft_wrap=True)
 
 
-def _fail(message: str, code: int = 2) -> None:
+def _print_error(message: str) -> None:
     err.print("[bold red]error:[/] ", end="", highlight=False)
     err.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+def _fail(message: str, code: int = 2) -> None:
+    _print_error(message)
     raise typer.Exit(code)
 
 
@@ -140,7 +173,11 @@ def demo(
     from .experiments.demo import demo_outputs, run_demo
     from .results import check_writable, discrete_result, write_json
     from .worlds.render import paths_to_xy, render_summary_png
+    from .worlds.zones import resolve_map
 
+    zone_map = resolve_map(map_spec) if map_spec else None
+    if zone_map is not None:
+        zone_map.to_mdp()  # validate the map before any output is started
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a directory")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -149,7 +186,7 @@ def demo(
         check_writable(p, force=force)
     t0 = time.perf_counter()
     with _progress() as bar:
-        run = run_demo(seed, map_spec=map_spec, episodes=episodes, k=k,
+        run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k,
                        progress=_solve_progress(bar, "solving soft value iteration"))
     elapsed = time.perf_counter() - t0
     s = run.summary()

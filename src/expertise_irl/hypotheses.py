@@ -187,7 +187,10 @@ def resolve_thetas(spec: str, n_features: int) -> np.ndarray:
     spec = spec.strip()
     if spec in THETA_PRESETS:
         return theta_grid(THETA_PRESETS[spec], n_features)
-    return theta_grid(_parse_floats(spec, "--thetas"), n_features)
+    try:
+        return theta_grid(_parse_floats(spec, "--thetas"), n_features)
+    except InputError as exc:
+        raise InputError(f"--thetas {spec!r}: {exc}") from None
 
 
 def resolve_betas(spec: str) -> np.ndarray:

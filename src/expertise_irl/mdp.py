@@ -221,7 +221,14 @@ class TabularMDP:
         try:
             with np.load(path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
-        except Exception as exc:  # zipfile / pickle / format errors
+        except ValueError as exc:
+            if "pickle" in str(exc):
+                raise InputError(
+                    f"{path}: not a readable .npz archive of plain arrays "
+                    "(expected next_state, features, terminal; see the README)"
+                ) from None
+            raise InputError(f"{path}: not a readable .npz archive ({exc})") from None
+        except Exception as exc:  # zipfile / format errors
             raise InputError(f"{path}: not a readable .npz archive ({exc})") from None
         missing = [k for k in ("next_state", "features", "terminal") if k not in data]
         if missing:

@@ -72,13 +72,20 @@ def run_demo(
     seed: int,
     *,
     map_spec: str | None = None,
+    zone_map: ZoneMap | None = None,
     episodes: int = DEFAULT_EPISODES,
     k: int = DEFAULT_K,
     progress: Callable[[int, int], None] | None = None,
 ) -> DemoRun:
-    """Run the demo job deterministically from ``seed`` (no files written)."""
+    """Run the demo job deterministically from ``seed`` (no files written).
+
+    The map is ``zone_map`` if given, else ``map_spec`` (a file or bundled name), else a
+    random map generated from the seed.
+    """
     map_seq, set_seq, truth_seq, sim_seq = np.random.SeedSequence(seed).spawn(4)
-    if map_spec is None:
+    if zone_map is not None:
+        pass
+    elif map_spec is None:
         lo, hi = DEMO_MAP_SIZE
         zone_map = generate_map(np.random.default_rng(map_seq), min_size=lo, max_size=hi,
                                 name=f"generated (seed {seed})")
