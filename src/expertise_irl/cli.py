@@ -191,9 +191,10 @@ def demo(
     elapsed = time.perf_counter() - t0
     s = run.summary()
     names = run.mdp.feature_names
-    table = Table(title=escape(f"expertise-irl demo (seed {seed}) on {run.zone_map.name}: "
-                  f"{run.mdp.n_states} states, {len(run.hypotheses)} hypotheses, "
-                  f"{run.trajectories.n_episodes} episodes / {len(run.trajectories)} actions"))
+    _say(f"map {run.zone_map.name}: {run.mdp.n_states} states; {len(run.hypotheses)} hypotheses "
+         f"({run.hypotheses.n_theta} θ × {run.hypotheses.n_beta} β); "
+         f"{run.trajectories.n_episodes} episodes, {len(run.trajectories)} actions")
+    table = Table(title=escape(f"expertise-irl demo, seed {seed}: true vs inferred"))
     table.add_column("")
     table.add_column("true", justify="right")
     table.add_column("inferred", justify="right")
