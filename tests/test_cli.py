@@ -205,9 +205,9 @@ def inferred(work, corridor_csv):
 # ----------------------------------------------------------------------------- demo
 def test_demo_writes_png_and_result(demo_a):
     out_dir, _ = demo_a
-    assert sorted(p.name for p in out_dir.iterdir()) == ["demo.png", "result.json"]
-    assert (out_dir / "demo.png").read_bytes()[:8] == PNG_SIGNATURE
-    doc = load(out_dir / "result.json")
+    assert sorted(p.name for p in out_dir.iterdir()) == ["demo-seed0.png", "result-seed0.json"]
+    assert (out_dir / "demo-seed0.png").read_bytes()[:8] == PNG_SIGNATURE
+    doc = load(out_dir / "result-seed0.json")
     for key in ("beta_hat", "theta_hat", "hypotheses", "settings", "version", "truth", "metrics"):
         assert key in doc, key
     theta, beta, p = check_hypotheses(doc)
@@ -231,18 +231,18 @@ def test_demo_writes_png_and_result(demo_a):
 
 def test_demo_table_shows_truth_inference_and_metrics(demo_a):
     out_dir, result = demo_a
-    doc = load(out_dir / "result.json")
+    doc = load(out_dir / "result-seed0.json")
     stdout = result.stdout
     truth, m = doc["truth"], doc["metrics"]
     assert table_cells(stdout, "expertise β", exact=True) == [f"{truth['beta']:g}", f"{doc['beta_hat']:.3g}"]
     for i, name in enumerate(doc["feature_names"]):
         assert table_cells(stdout, f"θ {name}", exact=True) == [
             f"{truth['theta'][i]:.3f}", f"{doc['theta_hat'][i]:.3f}"]
-    assert table_cells(stdout, "P(true hypothesis)") == ["", f"{truth['probability']:.3f}"]
+    assert table_cells(stdout, "P(θ*, β*)") == ["", f"{truth['probability']:.3f}"]
     assert table_cells(stdout, "expertise distance") == ["", f"{m['expertise_distance']:.3g}"]
     assert table_cells(stdout, "cosine similarity") == ["", f"{m['cosine_similarity']:.3f}"]
     assert table_cells(stdout, "policy regret") == ["", f"{m['policy_regret']:.3g}"]
-    assert str(out_dir / "demo.png") in stdout and str(out_dir / "result.json") in stdout
+    assert str(out_dir / "demo-seed0.png") in stdout and str(out_dir / "result-seed0.json") in stdout
 
 
 def test_demo_same_seed_same_result(work, demo_a):
@@ -250,7 +250,8 @@ def test_demo_same_seed_same_result(work, demo_a):
     out_b, out_c = work / "demo-b", work / "demo-c"
     ok(invoke("demo", "--map", "corridor", "--seed", 0, "--out", out_b))
     ok(invoke("demo", "--map", "corridor", "--seed", 1, "--out", out_c))
-    a, b, c = (load(d / "result.json") for d in (out_a, out_b, out_c))
+    a, b = (load(d / "result-seed0.json") for d in (out_a, out_b))
+    c = load(out_c / "result-seed1.json")
     for doc in (a, b, c):
         assert doc.pop("run_time_s") >= 0
     assert a == b
@@ -261,7 +262,7 @@ def test_demo_same_seed_same_result(work, demo_a):
 def test_demo_refuses_to_overwrite_without_force(demo_a, tmp_path):
     out_dir = tmp_path / "demo"
     shutil.copytree(demo_a[0], out_dir)
-    png, js = out_dir / "demo.png", out_dir / "result.json"
+    png, js = out_dir / "demo-seed0.png", out_dir / "result-seed0.json"
     for p in (png, js):
         age(p)
     before = {p: snapshot(p) for p in (png, js)}
@@ -281,11 +282,12 @@ def test_demo_refuses_to_overwrite_without_force(demo_a, tmp_path):
 def test_demo_checks_every_output_before_writing(demo_a, tmp_path):
     out_dir = tmp_path / "demo"
     out_dir.mkdir()
-    shutil.copy(demo_a[0] / "result.json", out_dir / "result.json")
-    before = snapshot(out_dir / "result.json")
-    assert_input_error(invoke("demo", "--map", "corridor", "--out", out_dir), "result.json", "already exists")
-    assert not (out_dir / "demo.png").exists()
-    assert snapshot(out_dir / "result.json") == before
+    shutil.copy(demo_a[0] / "result-seed0.json", out_dir / "result-seed0.json")
+    before = snapshot(out_dir / "result-seed0.json")
+    assert_input_error(invoke("demo", "--map", "corridor", "--out", out_dir),
+                       "result-seed0.json", "already exists")
+    assert not (out_dir / "demo-seed0.png").exists()
+    assert snapshot(out_dir / "result-seed0.json") == before
 
 
 def test_demo_default_generated_map_end_to_end(tmp_path):
@@ -293,12 +295,12 @@ def test_demo_default_generated_map_end_to_end(tmp_path):
     proc = run_cli("demo", "--seed", 2, "--out", "demo-out", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     out_dir = tmp_path / "demo-out"
-    assert (out_dir / "demo.png").read_bytes()[:8] == PNG_SIGNATURE
-    doc = load(out_dir / "result.json")
+    assert (out_dir / "demo-seed2.png").read_bytes()[:8] == PNG_SIGNATURE
+    doc = load(out_dir / "result-seed2.json")
     check_hypotheses(doc)
     assert doc["settings"]["map"].startswith("generated")
     assert doc["settings"]["episodes"] == 20
-    for label in ("expertise β", "P(true hypothesis)", "expertise distance", "cosine similarity",
+    for label in ("expertise β", "P(θ*, β*)", "expertise distance", "cosine similarity",
                   "policy regret"):
         assert label in proc.stdout, label
     assert table_cells(proc.stdout, "expertise β", exact=True)[0] == f"{doc['truth']['beta']:g}"
@@ -689,3 +691,68 @@ def test_bad_input_end_to_end_has_no_traceback(case, tmp_path):
     for fragment in fragments:
         assert fragment in lines[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ([name] if name else [])  # nothing written
+
+
+# ----------------------------------------------------------------------------- review findings
+@pytest.mark.parametrize("command", ["demo", "simulate", "infer"])
+def test_negative_seed_is_a_one_line_error(command, corridor_csv, tmp_path):
+    args = {
+        "demo": ["demo", "--map", "corridor", "--out", tmp_path / "d"],
+        "simulate": ["simulate", "corridor", "--theta", THETA_STAR, "--beta", "1",
+                     "--out", tmp_path / "d.csv"],
+        "infer": ["infer", "corridor", "--demos", corridor_csv, "--sample-thetas", "2", "--out",
+                  tmp_path / "r.json"],
+    }[command]
+    assert_input_error(invoke(*args, "--seed", "-1"), "--seed")
+
+
+def test_output_under_a_file_is_refused_before_any_work(corridor_csv, tmp_path):
+    line = assert_input_error(invoke("infer", "corridor", "--demos", corridor_csv,
+                                     "--out", corridor_csv / "r.json"), "is not a directory")
+    assert str(corridor_csv) in line
+
+
+def test_render_rejects_an_unknown_figure_format(tmp_path):
+    assert_input_error(invoke("render", "corridor", "--out", tmp_path / "map.txt"), "map.txt", ".txt")
+    assert not (tmp_path / "map.txt").exists()
+
+
+def test_infer_leaves_a_users_tmp_file_alone(corridor_csv, tmp_path):
+    precious = tmp_path / "r.json.tmp"
+    precious.write_text("precious\n")
+    ok(invoke("infer", "corridor", "--demos", corridor_csv, "--thetas", "0,1", "--betas", "1",
+              "--out", tmp_path / "r.json"))
+    assert precious.read_text() == "precious\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json", "r.json.tmp"]
+
+
+def test_map_with_no_state_to_act_in(tmp_path):
+    path = tmp_path / "onlygoal.txt"
+    path.write_text("G\n")
+    assert_input_error(invoke("export-mdp", path, "--out", tmp_path / "o.npz"),
+                       str(path), "every state is terminal")
+
+
+def test_tolerance_too_loose_is_refused(corridor_csv, tmp_path):
+    assert_input_error(invoke("infer", "corridor", "--demos", corridor_csv, "--tol", "10",
+                              "--out", tmp_path / "r.json"), "--tol")
+
+
+def test_demos_path_that_is_a_directory(tmp_path):
+    assert_input_error(invoke("infer", "corridor", "--demos", tmp_path, "--out", tmp_path / "r.json"),
+                       str(tmp_path), "is a directory")
+
+
+def test_bad_gamma_in_settings_names_the_toml(tmp_path):
+    (tmp_path / "m.txt").write_text("S.G\n")
+    (tmp_path / "m.toml").write_text("gamma = 1.5\n")
+    assert_input_error(invoke("export-mdp", tmp_path / "m.txt", "--out", tmp_path / "o.npz"),
+                       "m.toml", "gamma")
+
+
+def test_infer_records_inputs_exactly(inferred, corridor_csv):
+    plain, _ = inferred
+    settings = plain["settings"]
+    assert settings["goal_bonus"] == 10.0
+    assert settings["demos_digest"].startswith("sha256:") and len(settings["demos_digest"]) == 71
+    assert settings["mdp_digest"].startswith("sha256:")

@@ -299,11 +299,14 @@ GRID = "episode,step,x,y\n"
         ("\n\n", None, ["no demonstrations"]),
         (STATE, 1, ["no demonstrations"]),
         ("episode,step,state\n0,0,0\n", 1, ["missing column(s) action", "episode,step,state,action"]),
-        ("ep,step,x,y\n0,0,0,0\n", 1, ["missing column(s) episode", "unexpected column(s) ep"]),
-        ("episode,step,action,state\n0,0,0,1\n", 1, ["out of order"]),
+        ("ep,step,x,y\n0,0,0,0\n", 1, ["missing column(s) episode"]),
+        ("episode,step,state,state,action\n0,0,0,0,1\n", 1, ["'state' appears more than once"]),
+        (STATE + "0,0,99999999999999999999999,1\n", 2, ["column 'state'", "out of range"]),
+        (STATE + "0,0,1e300,1\n", 2, ["column 'state'", "out of range"]),
         ("0,0,0,1\n", 1, ["missing header"]),
         (STATE + "0,0,3,0\n0,1,0\n", 3, ["3 fields, expected 4"]),
         (STATE + "0,0,3,0\n0,1,0,1,\n", 3, ["5 fields, expected 4"]),
+        (STATE + "0,1,0,1\n", 2, ["sort the file by episode, then step"]),
         (STATE + "0,0,abc,1\n", 2, ["column 'state'", "'abc' is not a number"]),
         (STATE + "0,0,,1\n", 2, ["column 'state' is empty"]),
         (STATE + "0,1.5,0,1\n", 2, ["column 'step'", "'1.5' is not an integer"]),
@@ -362,3 +365,27 @@ def test_csv_error_line_numbers_count_crlf_and_blank_lines(small, tmp_path):
     path = tmp_path / "demos.csv"
     path.write_bytes(b"episode,step,state,action\r\n\r\n0,0,3,0\r\n\r\n0,1,0,2\r\n")
     check_error(path, small, 5, "episode 0 step 1", "action 2 (left) is not available")
+
+
+def test_columns_are_found_by_name_and_extra_columns_ignored(tmp_path):
+    """A recording exported with its columns in another order, plus a timestamp, reads the same."""
+    mdp = parse_map("S..\n.#G\n").to_mdp()
+    plain = tmp_path / "plain.csv"
+    plain.write_text("episode,step,x,y\n0,0,0,0\n0,1,1,0\n0,2,2,0\n0,3,2,1\n")
+    shuffled = tmp_path / "shuffled.csv"
+    shuffled.write_text(
+        "t,y,x,step,episode\n0.0,0,0,0,0\n1.0,0,1,1,0\n2.0,0,2,2,0\n3.0,1,2,3,0\n"
+    )
+    a, b = read_demos_csv(plain, mdp), read_demos_csv(shuffled, mdp)
+    for k in ("episode", "step", "state", "action"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    assert a.action.tolist() == [3, 3, 1]  # right, right, down
+
+
+def test_simulate_accepts_an_integer_seed():
+    mdp = parse_map("S..\n.#G\n").to_mdp()
+    a = simulate(mdp, [1, 0, 0, 0, 0], 0.5, 5, 7)
+    b = simulate(mdp, [1, 0, 0, 0, 0], 0.5, 5, np.random.default_rng(7))
+    np.testing.assert_array_equal(a.action, b.action)
+    with pytest.raises(InputError, match="seed"):
+        simulate(mdp, [1, 0, 0, 0, 0], 0.5, 5, -1)

@@ -92,10 +92,8 @@ def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             _fail(str(exc))
         except ConvergenceError as exc:
             _fail(str(exc), code=1)
-        except PermissionError as exc:
-            _fail(f"{exc.filename}: permission denied")
-        except IsADirectoryError as exc:
-            _fail(f"{exc.filename}: is a directory")
+        except OSError as exc:  # a file we were asked to read or write cannot be
+            _fail(f"{exc.filename or 'file'}: {exc.strerror or exc}")
         except KeyboardInterrupt:
             _fail("interrupted", code=130)
 
@@ -158,8 +156,9 @@ def _check_beta(beta: float, what: str = "--beta") -> float:
 @app.command()
 @handles_errors
 def demo(
-    seed: Annotated[int, typer.Option(help="Random seed: map, hypothesis set, truth and episodes.")] = 0,
-    out_dir: Annotated[Path, typer.Option("--out", help="Directory for demo.png and result.json.")] = Path(
+    seed: Annotated[int, typer.Option(min=0, help="Random seed: map, hypothesis set, truth, episodes.")] = 0,
+    out_dir: Annotated[Path, typer.Option(
+        "--out", help="Directory for demo-seedN.png and result-seedN.json.")] = Path(
         "expertise-irl-demo"
     ),
     map_spec: Annotated[
@@ -167,7 +166,7 @@ def demo(
     ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Episodes the simulated person demonstrates.")] = 20,
     k: Annotated[int, typer.Option(min=1, help="Preference vectors in the hypothesis set Θ_k.")] = 20,
-    force: Annotated[bool, typer.Option(help="Overwrite demo.png / result.json if they exist.")] = False,
+    force: Annotated[bool, typer.Option(help="Overwrite this seed's figure and result.")] = False,
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
     from .experiments.demo import demo_outputs, run_demo
@@ -181,7 +180,7 @@ def demo(
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a directory")
     out_dir.mkdir(parents=True, exist_ok=True)
-    png, js = demo_outputs(out_dir)
+    png, js = demo_outputs(out_dir, seed)
     for p in (png, js):
         check_writable(p, force=force)
     t0 = time.perf_counter()
@@ -202,7 +201,7 @@ def demo(
     table.add_row("expertise group", s["group_true"], s["group_hat"])
     for i, n in enumerate(names):
         table.add_row(f"θ {n}", f"{s['theta_true'][i]:.3f}", f"{s['theta_hat'][i]:.3f}")
-    table.add_row("P(true hypothesis)", "", f"{s['truth_probability']:.3f}")
+    table.add_row("P(θ*, β*) (joint posterior)", "", f"{s['truth_probability']:.3f}")
     table.add_row("expertise distance |β*−β̂|", "", f"{s['expertise_distance']:.3g}")
     table.add_row("cosine similarity (θ*, θ̂)", "", f"{s['cosine_similarity']:.3f}")
     table.add_row("policy regret", "", f"{s['policy_regret']:.3g}")
@@ -257,7 +256,7 @@ def simulate(
     map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
     mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
-    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (actions).")] = 500,
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
@@ -290,7 +289,7 @@ def infer(
         help="B: a preset (paper-sim, paper-real) or comma-separated temperatures.")] = "paper-sim",
     sample_thetas: Annotated[int | None, typer.Option(
         min=1, help="Use only k preference vectors drawn at random (--seed) from Θ.")] = None,
-    seed: Annotated[int, typer.Option(help="Seed for --sample-thetas.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed for --sample-thetas.")] = 0,
     per_action: Annotated[bool, typer.Option(
         "--per-action", help="Update after every action and record the live estimates (trace).")] = False,
     tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
@@ -303,17 +302,20 @@ def infer(
     from .hypotheses import HypothesisSet, resolve_betas, resolve_thetas
     from .hypotheses import sample_thetas as sample
     from .inference.belief import DiscreteBelief
-    from .results import check_writable, discrete_result, write_json
+    from .results import check_writable, discrete_result, file_digest, write_json
 
     check_writable(out_path, force=force)
-    mdp, _ = _load_mdp(map_spec, mdp_path)
+    if not (0 < tol <= MAX_TOL):
+        raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {tol:g}")
+    mdp, zone_map = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
     th = resolve_thetas(thetas, mdp.n_features)
     if sample_thetas is not None:
+        if sample_thetas > len(th):
+            _say(f"note: --sample-thetas {sample_thetas} exceeds the {len(th)} directions of "
+                 f"--thetas {thetas}; using all of them")
         th = sample(th, min(sample_thetas, len(th)), np.random.default_rng(seed))
     hyp = HypothesisSet(th, resolve_betas(betas))
-    if not (tol > 0 and math.isfinite(tol)):
-        raise InputError(f"--tol must be a number > 0, got {tol:g}")
     t0 = time.perf_counter()
     with _progress() as bar:
         chunk = chunk_size or _chunk_for_progress(mdp, len(hyp))
@@ -324,7 +326,10 @@ def infer(
     elapsed = time.perf_counter() - t0
     settings = {
         "command": "infer", "method": "discrete",
-        "mdp": str(mdp_path) if mdp_path else str(map_spec), "demos": str(demos),
+        "mdp": str(mdp_path) if mdp_path else str(map_spec),
+        "mdp_digest": file_digest(mdp_path) if mdp_path else _map_digest(zone_map),
+        "demos": str(demos), "demos_digest": file_digest(demos),
+        "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
         "thetas": thetas, "betas": betas, "sample_thetas": sample_thetas, "seed": seed,
         "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
         "prior": "uniform", "per_action": per_action, "tol": tol, "gamma": mdp.gamma,
@@ -339,6 +344,17 @@ def infer(
     if post.n_impossible:
         _say(f"note: {post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
     _say(f"wrote {out_path} ({len(hyp)} hypotheses, {len(trajs)} actions, {elapsed:.1f} s)")
+
+
+MAX_TOL = 0.1  # nats; a looser tolerance would make the log-likelihoods meaningless
+
+
+def _map_digest(zone_map) -> str:
+    """Digest of a map's content (grid and settings), whether from a file or bundled."""
+    import hashlib
+
+    text = f"{zone_map.to_text()}goal_bonus={zone_map.goal_bonus!r}\ngamma={zone_map.gamma!r}\n"
+    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
 
 
 def _chunk_for_progress(mdp, n_hyp: int) -> int:
@@ -363,6 +379,7 @@ def render(
     from .worlds.zones import resolve_map
 
     check_writable(out_path, force=force)
+    _check_figure_format(out_path)
     zone_map = resolve_map(map_spec)
     paths = None
     if demos is not None:
@@ -370,6 +387,17 @@ def render(
         paths = paths_to_xy(read_demos_csv(demos, mdp), mdp)
     render_map_png(zone_map, out_path, trajectories_xy=paths, title=zone_map.name)
     _say(f"wrote {out_path}")
+
+
+def _check_figure_format(path: Path) -> None:
+    from matplotlib.figure import Figure
+
+    supported = Figure().canvas.get_supported_filetypes()
+    ext = path.suffix.lower().lstrip(".")
+    if ext and ext not in supported:
+        raise InputError(
+            f"{path}: cannot write a figure as .{ext} (use one of: {', '.join(sorted(supported))})"
+        )
 
 
 @app.command()

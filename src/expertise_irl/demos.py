@@ -1,4 +1,4 @@
-"""Demonstrations: the Trajectories type, a simulated human, and CSV I/O (DESIGN §2)."""
+"""Demonstrations: the Trajectories type, a simulated human, and CSV I/O (formats in the README)."""
 
 from __future__ import annotations
 
@@ -131,7 +131,7 @@ def simulate(
     theta,
     beta,
     n_episodes: int,
-    rng: np.random.Generator,
+    rng: np.random.Generator | int,
     *,
     starts=None,
     max_steps: int = DEFAULT_MAX_STEPS,
@@ -153,8 +153,8 @@ def simulate(
         Expertise (temperature), ``> 0``.
     n_episodes : int
         Number of episodes N (``>= 0``).
-    rng : numpy.random.Generator
-        Source of all randomness (start states and actions).
+    rng : numpy.random.Generator or int
+        Source of all randomness (start states and actions); an int is used as a seed.
     starts : array ``[M]`` of int, optional
         Non-terminal states to start from, drawn uniformly per episode. Default:
         ``mdp.initial_states()`` (the map's start cells, else every non-terminal state).
@@ -192,6 +192,10 @@ def simulate(
     if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
         raise InputError(f"max_steps must be an integer >= 1, got {max_steps!r}")
 
+    if not isinstance(rng, np.random.Generator):
+        if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
+            raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
+        rng = np.random.default_rng(int(rng))
     cdf = np.cumsum(np.exp(lp), axis=1)
     total = cdf[:, -1:]
     # Dividing by the row total makes the last entry exactly 1.0, so u in [0, 1) never
@@ -244,9 +248,10 @@ def _structure_error(episode: np.ndarray, step: np.ndarray) -> tuple[int, str] |
         return None
     i = int(np.flatnonzero(bad)[0])
     if bad_dup[i]:
-        msg = "episode appears again after other episodes; the rows of one episode must be contiguous"
+        msg = ("episode appears again after other episodes; the rows of one episode must be "
+               "contiguous (sort the file by episode, then step)")
     elif expected[i] == 0:
-        msg = f"episode starts at step {step[i]}, expected step 0"
+        msg = f"episode starts at step {step[i]}, expected step 0 (sort the file by episode, then step)"
     else:
         msg = f"step {step[i]} follows step {step[i - 1]}; steps must be consecutive 0, 1, 2, ..."
     return i, msg
@@ -362,7 +367,7 @@ def _require_grid(mdp: TabularMDP, source) -> np.ndarray:
 
 
 def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, fmt: str = "auto") -> None:
-    """Write demonstrations as CSV (DESIGN §2); :func:`read_demos_csv` reads them back.
+    """Write demonstrations as CSV (formats in the README); :func:`read_demos_csv` reads them back.
 
     Parameters
     ----------
@@ -402,11 +407,18 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
                 out.writerow([int(ep[i]), int(step[i]) + 1, *xy[mdp.next_state[s[i], a[i]]].tolist()])
 
 
+_INT_LIMIT = 2**62  # far beyond any state, cell, step or episode label; keeps int64 safe
+
+
 def _parse_int(text: str, column: str, prefix: str) -> int:
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
         pass
+    else:
+        if abs(value) >= _INT_LIMIT:
+            raise InputError(f"{prefix}column '{column}': {text!r} is out of range")
+        return value
     if not text:
         raise InputError(f"{prefix}column '{column}' is empty")
     try:
@@ -415,11 +427,15 @@ def _parse_int(text: str, column: str, prefix: str) -> int:
         raise InputError(f"{prefix}column '{column}': {text!r} is not a number") from None
     if not math.isfinite(value) or value != int(value):
         raise InputError(f"{prefix}column '{column}': {text!r} is not an integer")
+    if abs(value) >= _INT_LIMIT:
+        raise InputError(f"{prefix}column '{column}': {text!r} is out of range")
     return int(value)
 
 
 def _read_rows(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
     """Format name, ``[n, 4]`` int values and ``[n]`` line numbers of the data rows."""
+    if Path(path).is_dir():
+        raise InputError(f"{where(path)}is a directory, expected a demonstrations CSV file")
     if not Path(path).is_file():
         raise InputError(f"{where(path)}no such file")
     records: list[tuple[int, list[str]]] = []
@@ -439,34 +455,34 @@ def _read_rows(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
         raise InputError(f"{where(path)}no demonstrations: the file is empty")
     line, header = records[0]
     names = [h.lower() for h in header]
-    fmt = next((k for k, cols in _HEADERS.items() if names == list(cols)), None)
+    # Columns are found by name, in any order; other columns (a timestamp, say) are ignored.
+    fmt = next((k for k, cols in _HEADERS.items() if set(cols) <= set(names)), None)
     if fmt is None:
         got = ",".join(header)
         if all(h.lstrip("-").isdigit() for h in header):
             raise InputError(f"{where(path, line)}missing header row: expected {_HEADER_HELP}, got {got!r}")
-        cols = min(_HEADERS.values(), key=lambda c: len(set(c) ^ set(names)))
+        cols = min(_HEADERS.values(), key=lambda c: len(set(c) - set(names)))
         missing = [c for c in cols if c not in names]
-        extra = [h for h in header if h.lower() not in cols]
-        why = "; ".join(
-            part for part in (
-                f"missing column(s) {', '.join(missing)}" if missing else "",
-                f"unexpected column(s) {', '.join(extra)}" if extra else "",
-                "columns out of order" if not (missing or extra) else "",
-            ) if part
+        raise InputError(
+            f"{where(path, line)}expected header {_HEADER_HELP}, got {got!r} "
+            f"(missing column(s) {', '.join(missing)})"
         )
-        raise InputError(f"{where(path, line)}expected header {_HEADER_HELP}, got {got!r} ({why})")
     cols = _HEADERS[fmt]
+    dup = [c for c in cols if names.count(c) > 1]
+    if dup:
+        raise InputError(f"{where(path, line)}column {dup[0]!r} appears more than once in the header")
+    pos = [names.index(c) for c in cols]
     if len(records) == 1:
         raise InputError(f"{where(path, line)}no demonstrations: the file has a header but no rows")
     values = np.empty((len(records) - 1, 4), dtype=np.int64)
     lines = np.empty(len(records) - 1, dtype=np.int64)
     for r, (line, fields) in enumerate(records[1:]):
         prefix = where(path, line)
-        if len(fields) != len(cols):
+        if len(fields) != len(header):
             raise InputError(
-                f"{prefix}row has {len(fields)} fields, expected {len(cols)} ({','.join(cols)})"
+                f"{prefix}row has {len(fields)} fields, expected {len(header)} ({','.join(header)})"
             )
-        values[r] = [_parse_int(f, c, prefix) for f, c in zip(fields, cols, strict=True)]
+        values[r] = [_parse_int(fields[i], c, prefix) for i, c in zip(pos, cols, strict=True)]
         lines[r] = line
     err = _structure_error(values[:, 0], values[:, 1])
     if err is not None:
@@ -476,7 +492,7 @@ def _read_rows(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
 
 
 def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
-    """Read demonstrations from CSV, detecting the format from the header (DESIGN §2).
+    """Read demonstrations from CSV, detecting the format from the header (formats in the README).
 
     ``episode,step,state,action`` gives one (state, action) pair per row;
     ``episode,step,x,y`` gives one visited cell per row (the final cell included,

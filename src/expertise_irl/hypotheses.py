@@ -1,7 +1,7 @@
 """Hypothesis sets Ψ = Θ × B (paper Secs. V-D and VIII-A).
 
 Θ grids hold non-negative preference vectors normalised to unit l1 norm
-(DESIGN §1: the policy depends on θ/β only, so the scale of θ is fixed). The
+(the policy depends on θ/β only, so the scale of θ is fixed). The
 zero vector has no direction and is dropped; vectors equal after
 normalisation are kept once, in the order they first appear in the
 lexicographic product.
@@ -187,8 +187,9 @@ def resolve_thetas(spec: str, n_features: int) -> np.ndarray:
     spec = spec.strip()
     if spec in THETA_PRESETS:
         return theta_grid(THETA_PRESETS[spec], n_features)
+    values = _parse_floats(spec, "--thetas")
     try:
-        return theta_grid(_parse_floats(spec, "--thetas"), n_features)
+        return theta_grid(values, n_features)
     except InputError as exc:
         raise InputError(f"--thetas {spec!r}: {exc}") from None
 

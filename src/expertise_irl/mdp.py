@@ -1,4 +1,4 @@
-"""Deterministic tabular MDP with transition features (DESIGN §1) and its ``.npz`` archive.
+"""Deterministic tabular MDP with transition features and its ``.npz`` archive.
 
 Shapes: ``S`` states, ``A`` actions, ``K`` features.
 
@@ -32,7 +32,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 class TabularMDP:
     """A validated deterministic tabular MDP.
 
-    Construction checks shapes, dtypes and the two structural rules of DESIGN §1:
+    Construction checks shapes, dtypes and two structural rules:
     every non-terminal state has an available action, and every non-terminal
     state can reach a terminal state. Violations raise :class:`InputError`.
 
@@ -98,6 +98,8 @@ class TabularMDP:
         feats = np.where(avail[:, :, None], feats, 0.0)
         if not term.any():
             raise InputError(f"{src}: the MDP has no terminal (goal) state")
+        if term.all():
+            raise InputError(f"{src}: every state is terminal; there is no state to act in")
         stuck = ~term & ~avail.any(axis=1)
         if stuck.any():
             s = int(np.flatnonzero(stuck)[0])
@@ -197,7 +199,7 @@ class TabularMDP:
 
     # ---------------------------------------------------------------- archive
     def save(self, path: str | Path) -> None:
-        """Write the MDP archive of DESIGN §2 (``.npz``)."""
+        """Write the MDP archive (``.npz``, format in the README)."""
         arrays: dict[str, np.ndarray] = {
             "next_state": self.next_state,
             "features": self.features,

@@ -8,9 +8,11 @@ marginals, every hypothesis with its ``log_likelihood``, ``log_posterior`` and
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -77,22 +79,44 @@ def discrete_result(belief: DiscreteBelief, *, feature_names, settings: dict[str
 
 
 def check_writable(path: str | Path, *, force: bool) -> Path:
-    """Refuse to overwrite an existing file unless ``force``; the parent directory must exist."""
+    """Check an output path before any work is done.
+
+    Refuses to overwrite an existing file unless ``force``; the parent must be an existing,
+    writable directory.
+    """
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, expected a file path")
     if path.exists() and not force:
         raise InputError(f"{path}: already exists; pass --force to overwrite it")
-    if path.exists() and path.is_dir():
-        raise InputError(f"{path}: is a directory, expected a file path")
-    if not path.parent.exists():
-        raise InputError(f"{path.parent}: output directory does not exist")
+    parent = path.parent
+    if not parent.exists():
+        raise InputError(f"{parent}: output directory does not exist")
+    if not parent.is_dir():
+        raise InputError(f"{parent}: is not a directory, so {path} cannot be created")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{parent}: output directory is not writable")
     return path
 
 
+def file_digest(path: str | Path) -> str:
+    """``sha256:<hex>`` of a file, to record exactly which input a result came from."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return "sha256:" + h.hexdigest()
+
+
 def write_json(path: str | Path, doc: dict[str, Any]) -> None:
-    """Write ``doc`` as strict JSON (no NaN/Infinity), atomically."""
+    """Write ``doc`` as strict JSON (no NaN/Infinity), atomically (via a fresh temporary file)."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", encoding="utf-8") as fh:
-        json.dump(doc, fh, indent=1, allow_nan=False)
-        fh.write("\n")
-    os.replace(tmp, path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh, indent=1, allow_nan=False)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -112,6 +112,6 @@ def run_demo(
     return DemoRun(zone_map, mdp, hyp, theta_true, beta_true, trajs, post, metrics)
 
 
-def demo_outputs(out_dir: Path) -> tuple[Path, Path]:
-    """Paths of the demo's figure and result JSON inside ``out_dir``."""
-    return out_dir / "demo.png", out_dir / "result.json"
+def demo_outputs(out_dir: Path, seed: int) -> tuple[Path, Path]:
+    """Paths of the demo's figure and result JSON inside ``out_dir`` (one pair per seed)."""
+    return out_dir / f"demo-seed{seed}.png", out_dir / f"result-seed{seed}.json"

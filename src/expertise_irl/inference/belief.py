@@ -240,7 +240,8 @@ class DiscreteBelief:
         out = {"high": 0.0, "medium": 0.0, "low": 0.0}
         for b, q in zip(betas.tolist(), p.tolist(), strict=True):
             out[expertise_group(b)] += q
-        return out
+        total = sum(out.values())
+        return {k: v / total for k, v in out.items()}
 
     def trace(self, trajs: Trajectories, *, truth: int | None = None, max_block: int = 2**24) -> Trace:
         """Live estimates: E[β], E[θ], entropy after each action of ``trajs``, in order.

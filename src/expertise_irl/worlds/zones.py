@@ -2,14 +2,14 @@
 
 Cells on a W×H grid (x = column, y = row, row 0 at the top). Four actions,
 ``up, down, left, right``; a move off the grid or into an obstacle is
-unavailable. Zone legend (DESIGN §2)::
+unavailable. Zone legend (as in the README)::
 
     .  free          #  obstacle       G  goal (terminal)   S  start (free)
     x  avoid (red)   s  slow (yellow)  t  high traffic (purple)
     > < ^ v  road (blue) with its travel direction
 
 Features of a move from cell c to neighbour c' in direction d (each signed so
-that a larger θ_i means the person cares more; DESIGN §1):
+that a larger θ_i means the person cares more):
 
 1. ``length``  −1 per move, plus ``goal_bonus`` on entering a goal.
 2. ``road``    if c' is a road cell with direction r: +1 when d = r, −1 when d = −r,
@@ -160,7 +160,7 @@ def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOA
     first = 0
     while first < len(lines) and not lines[first].strip():
         first += 1
-    rows = [ln.rstrip("\r") for ln in lines[first:]]
+    rows = [ln.rstrip() for ln in lines[first:]]  # trailing spaces from editors are not cells
     while rows and not rows[-1].strip():
         rows.pop()
     if not rows:
@@ -199,6 +199,10 @@ def read_settings(path: Path) -> dict[str, float]:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise InputError(f"{path}: setting {key!r} must be a number, got {value!r}")
         out[key] = float(value)
+    if "gamma" in out and not 0.0 < out["gamma"] < 1.0:
+        raise InputError(f"{path}: gamma must be in (0, 1), got {out['gamma']:g}")
+    if "goal_bonus" in out and not np.isfinite(out["goal_bonus"]):
+        raise InputError(f"{path}: goal_bonus must be a finite number")
     return out
 
 
@@ -210,7 +214,8 @@ def load_map(path: str | Path) -> ZoneMap:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file (UTF-8)") from None
+        hint = "; pass an MDP archive with --mdp" if path.suffix == ".npz" else ""
+        raise InputError(f"{path}: not a text map (UTF-8){hint}") from None
     settings_path = path.with_suffix(".toml")
     settings = read_settings(settings_path) if settings_path.is_file() else {}
     return parse_map(text, name=str(path), **settings)
