@@ -294,7 +294,7 @@ def infer(
         "--per-action", help="Update after every action and record the live estimates (trace).")] = False,
     tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
     chunk_size: Annotated[int | None, typer.Option(
-        min=1, help="Hypotheses solved at once (bounds memory; default from a 512 MiB budget).")] = None,
+        min=1, help="Hypotheses in flight at once in the solver (default: sized to the map).")] = None,
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Infer expertise β and preferences θ with the discrete hypothesis set (paper Eq. 13)."""
@@ -318,8 +318,7 @@ def infer(
     hyp = HypothesisSet(th, resolve_betas(betas))
     t0 = time.perf_counter()
     with _progress() as bar:
-        chunk = chunk_size or _chunk_for_progress(mdp, len(hyp))
-        prior = DiscreteBelief.from_mdp(mdp, hyp, tol=tol, chunk_size=chunk,
+        prior = DiscreteBelief.from_mdp(mdp, hyp, tol=tol, chunk_size=chunk_size,
                                         progress=_solve_progress(bar, "solving soft value iteration"))
     post = prior.update(trajs, per_action=per_action)
     trace = prior.trace(trajs) if per_action else None
@@ -355,13 +354,6 @@ def _map_digest(zone_map) -> str:
 
     text = f"{zone_map.to_text()}goal_bonus={zone_map.goal_bonus!r}\ngamma={zone_map.gamma!r}\n"
     return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
-
-
-def _chunk_for_progress(mdp, n_hyp: int) -> int:
-    """About 20 progress steps, never above the memory-bounded default chunk."""
-    from .planning import default_chunk_size
-
-    return max(1, min(default_chunk_size(mdp), math.ceil(n_hyp / 20)))
 
 
 @app.command()
