@@ -756,3 +756,55 @@ def test_infer_records_inputs_exactly(inferred, corridor_csv):
     assert settings["goal_bonus"] == 10.0
     assert settings["demos_digest"].startswith("sha256:") and len(settings["demos_digest"]) == 71
     assert settings["mdp_digest"].startswith("sha256:")
+
+
+# ----------------------------------------------------------------------------- continuous methods
+@pytest.mark.parametrize("method,extra", [
+    ("map", ["--starts", "2"]),
+    ("nuts", ["--chains", "2", "--warmup", "60", "--samples", "60"]),
+    ("birl", ["--iterations", "150", "--variant", "simplex"]),
+])
+def test_infer_continuous_methods(method, extra, corridor_csv, tmp_path):
+    out = tmp_path / f"{method}.json"
+    ok(invoke("infer", "corridor", "--demos", corridor_csv, "--method", method, "--seed", "3",
+              *extra, "--out", out))
+    doc = load(out)
+    assert doc["method"] == method and doc["settings"]["method"] == method
+    K = len(doc["feature_names"])
+    assert len(doc["theta_hat"]) == K and doc["beta_hat"] > 0
+    assert set(doc["map"]) >= {"theta", "beta"} and len(doc["map"]["theta"]) == K
+    assert doc["run_time_s"] > 0 and "version" in doc
+    if method == "map":
+        assert doc["theta_hat"] == doc["map"]["theta"]  # for map the estimate is the optimum
+        assert sum(doc["theta_hat"]) == pytest.approx(1.0)
+    else:
+        ci = doc["credible_intervals"]
+        assert ci["beta"][0] <= ci["beta"][1] and len(ci["theta"]) == K
+        samples = doc["samples"]
+        beta = np.array(samples["beta"])
+        assert len(samples["theta"]) == len(beta) == len(samples["chain"])
+        # The reported point estimate is the mean of the reported draws.
+        assert doc["beta_hat"] == pytest.approx(beta.mean(), rel=1e-9)
+        assert np.quantile(beta, 0.05) == pytest.approx(ci["beta"][0], rel=1e-9)
+    diag = doc["diagnostics"]
+    if method == "nuts":
+        assert set(diag) >= {"r_hat", "ess_bulk", "divergences"}
+    if method == "birl":
+        assert 0 < diag["acceptance_rate"] < 1
+
+
+def test_infer_method_is_seeded(corridor_csv, tmp_path):
+    docs = []
+    for name in ("a", "b"):
+        out = tmp_path / f"{name}.json"
+        ok(invoke("infer", "corridor", "--demos", corridor_csv, "--method", "birl", "--iterations", "80",
+                  "--seed", "7", "--out", out))
+        doc = load(out)
+        doc.pop("run_time_s")
+        docs.append(doc)
+    assert docs[0] == docs[1]
+
+
+def test_infer_unknown_method(corridor_csv, tmp_path):
+    assert_input_error(invoke("infer", "corridor", "--demos", corridor_csv, "--method", "magic",
+                              "--out", tmp_path / "r.json"), "--method", "magic")

@@ -295,20 +295,49 @@ def infer(
     tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
     chunk_size: Annotated[int | None, typer.Option(
         min=1, help="Hypotheses in flight at once in the solver (default: sized to the map).")] = None,
+    method: Annotated[str, typer.Option(
+        help="discrete (hypothesis set, Eq. 13), birl (Algorithm 1), map (L-BFGS on the simplex) "
+        "or nuts (full posterior).")] = "discrete",
+    iterations: Annotated[int, typer.Option(min=1, help="birl: iterations K.")] = 1000,
+    delta: Annotated[float, typer.Option(help="birl: θ grid step δ.")] = 0.05,
+    beta_step: Annotated[float, typer.Option(help="birl: β grid step.")] = 0.1,
+    variant: Annotated[str, typer.Option(help="birl: 'box' (as printed) or 'simplex' (‖θ‖₁ = 1).")] = "box",
+    starts: Annotated[int, typer.Option(min=1, help="map: random starts.")] = 4,
+    chains: Annotated[int, typer.Option(min=1, help="nuts: chains.")] = 4,
+    warmup: Annotated[int, typer.Option(min=1, help="nuts: warm-up steps per chain.")] = 500,
+    samples: Annotated[int, typer.Option(min=1, help="nuts: draws per chain.")] = 500,
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
-    """Infer expertise β and preferences θ with the discrete hypothesis set (paper Eq. 13)."""
+    """Infer expertise β and preferences θ from demonstrations.
+
+    The default method is the paper's discrete hypothesis set (Eq. 13); birl, map and nuts
+    search the continuous space (θ on the simplex or box, β > 0). --seed makes every method
+    reproducible.
+    """
     from .demos import read_demos_csv
     from .hypotheses import HypothesisSet, resolve_betas, resolve_thetas
     from .hypotheses import sample_thetas as sample
     from .inference.belief import DiscreteBelief
+    from .inference.continuous import METHODS
     from .results import check_writable, discrete_result, file_digest, write_json
 
+    if method not in METHODS:
+        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
     check_writable(out_path, force=force)
     if not (0 < tol <= MAX_TOL):
         raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {tol:g}")
     mdp, zone_map = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
+    if method != "discrete":
+        from .inference.continuous import MethodOptions
+
+        opts = MethodOptions(iterations=iterations, delta=delta, beta_step=beta_step, variant=variant,
+                             starts=starts, chains=chains, warmup=warmup, samples=samples)
+        _infer_continuous(method, mdp, zone_map, trajs, opts, seed=seed, out_path=out_path, force=force,
+                          source={"mdp": str(mdp_path) if mdp_path else str(map_spec),
+                                  "mdp_digest": file_digest(mdp_path) if mdp_path else _map_digest(zone_map),
+                                  "demos": str(demos), "demos_digest": file_digest(demos)})
+        return
     th = resolve_thetas(thetas, mdp.n_features)
     if sample_thetas is not None:
         if sample_thetas > len(th):
@@ -346,6 +375,35 @@ def infer(
 
 
 MAX_TOL = 0.1  # nats; a looser tolerance would make the log-likelihoods meaningless
+
+
+def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, force, source) -> None:
+    from dataclasses import asdict
+
+    from .inference.continuous import run_method
+    from .results import INLINE_DRAWS, check_writable, continuous_result, samples_path_for, write_json
+
+    samples_path = samples_path_for(out_path)
+    if method == "nuts" and opts.chains * opts.samples > INLINE_DRAWS:
+        check_writable(samples_path, force=force)
+    elif method == "birl" and opts.iterations > INLINE_DRAWS:
+        check_writable(samples_path, force=force)
+    with err.status(f"running {method}…"):
+        res = run_method(method, mdp, trajs, opts, seed)
+    settings = {"command": "infer", "method": method, **source, "seed": seed, **asdict(opts),
+                "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
+                "gamma": mdp.gamma, "prior": "theta uniform; beta Normal(5.005, 1.5) on [0.01, 10]"}
+    doc = continuous_result(res, method=method, feature_names=mdp.feature_names, settings=settings,
+                            data={"episodes": trajs.n_episodes, "actions": len(trajs)},
+                            samples_path=samples_path)
+    write_json(out_path, doc)
+    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(mdp.feature_names, doc["theta_hat"], strict=True))
+    _say(f"β̂ = {doc['beta_hat']:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
+    ci = doc.get("credible_intervals")
+    if ci:
+        _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
+    extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
+    _say(f"wrote {out_path}{extra} ({method}, {len(trajs)} actions, {doc['run_time_s']:.1f} s)")
 
 
 def _map_digest(zone_map) -> str:

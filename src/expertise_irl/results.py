@@ -8,6 +8,7 @@ marginals, every hypothesis with its ``log_likelihood``, ``log_posterior`` and
 
 from __future__ import annotations
 
+import csv
 import hashlib
 import json
 import math
@@ -120,3 +121,47 @@ def write_json(path: str | Path, doc: dict[str, Any]) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+#: Draws written inline in the result JSON up to this many; beyond, to a CSV beside it.
+INLINE_DRAWS = 4000
+
+
+def samples_path_for(out_path: str | Path) -> Path:
+    """Where the draws of a large sampling run go: ``<out>.samples.csv`` beside the JSON."""
+    out_path = Path(out_path)
+    return out_path.with_name(out_path.stem + ".samples.csv")
+
+
+def continuous_result(method_out: dict[str, Any], *, method: str, feature_names, settings: dict[str, Any],
+                      data: dict[str, Any], samples_path: Path | None) -> dict[str, Any]:
+    """The JSON-ready result of ``birl``, ``map`` or ``nuts``; writes large draws to ``samples_path``."""
+    out = dict(method_out)
+    draws = out.pop("draws", None)
+    beta_hat = float(out["beta_hat"])
+    doc: dict[str, Any] = {
+        "version": __version__,
+        "method": method,
+        "feature_names": list(feature_names),
+        **{k: out.pop(k) for k in ("beta_hat", "theta_hat")},
+        "expertise_group": expertise_group(beta_hat),
+        **out,
+        "data": data,
+        "settings": settings,
+    }
+    if draws is not None:
+        chain, theta, beta = draws
+        if len(beta) <= INLINE_DRAWS or samples_path is None:
+            doc["samples"] = {"chain": [int(c) for c in chain], "beta": _vec(beta),
+                              "theta": [_vec(t) for t in theta]}
+        else:
+            with open(samples_path, "w", encoding="utf-8", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(["chain", "draw", "beta", *feature_names])
+                draw = np.zeros(len(beta), dtype=int)
+                for c in np.unique(chain):
+                    draw[chain == c] = np.arange(int(np.sum(chain == c)))
+                for c, d, b, t in zip(chain, draw, beta, theta, strict=True):
+                    w.writerow([int(c), int(d), repr(float(b)), *(repr(float(x)) for x in t)])
+            doc["samples"] = str(samples_path)
+    return doc

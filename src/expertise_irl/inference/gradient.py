@@ -133,6 +133,7 @@ class NUTSResult:
         r_hat: ``{"beta": float, "theta": [K]}`` split-R̂ (rank-normalised).
         ess: ``{"beta": float, "theta": [K]}`` bulk effective sample size.
         divergences: number of divergent transitions after warm-up.
+        log_density: ``[chains, draws]`` unnormalised log-posterior of each draw (θ, β space).
     """
 
     theta: np.ndarray
@@ -141,6 +142,7 @@ class NUTSResult:
     r_hat: dict
     ess: dict
     divergences: int
+    log_density: np.ndarray
 
     @property
     def mean_theta(self) -> np.ndarray:
@@ -202,6 +204,9 @@ def nuts_posterior(
                 num_chains=int(num_chains), chain_method="vectorized", progress_bar=False)
     mcmc.run(jax.random.PRNGKey(int(seed)), extra_fields=("diverging",))
     samples = mcmc.get_samples(group_by_chain=True)
+    th, be = samples["theta"], samples["beta"]
+    density = jax.vmap(jax.vmap(lambda t, b: f(t, b)[0] + theta_prior.log_prob(t) + beta_prior.log_prob(b)))
+    log_density = np.asarray(density(th, be))
     idata = az.from_numpyro(mcmc)
     rhat = az.rhat(idata, var_names=["theta", "beta"])
     ess = az.ess(idata, var_names=["theta", "beta"], method="bulk")
@@ -210,5 +215,5 @@ def nuts_posterior(
         theta=np.asarray(samples["theta"]), beta=np.asarray(samples["beta"]), idata=idata,
         r_hat={"beta": float(rhat["beta"]), "theta": np.asarray(rhat["theta"]).tolist()},
         ess={"beta": float(ess["beta"]), "theta": np.asarray(ess["theta"]).tolist()},
-        divergences=divergences,
+        divergences=divergences, log_density=log_density,
     )
