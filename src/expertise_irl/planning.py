@@ -16,6 +16,7 @@ memory stays bounded; chunks are padded to one shape so JAX compiles once.
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -112,6 +113,18 @@ def default_max_iter(mdp: TabularMDP, theta: np.ndarray, beta: np.ndarray, tol: 
     return int(2 * math.ceil(n) + 100)
 
 
+_PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _prepared(mdp: TabularMDP, dtype: str) -> kernel.Prepared:
+    """The MDP in the solver's layout, kept while the (immutable) MDP lives: samplers that
+    solve one hypothesis at a time on the same task pay the set-up once."""
+    per_mdp = _PREPARED.setdefault(mdp, {})
+    if dtype not in per_mdp:
+        per_mdp[dtype] = kernel.prepare(mdp, jnp.float64 if dtype == "float64" else jnp.float32)
+    return per_mdp[dtype]
+
+
 def default_chunk_size(mdp: TabularMDP, dtype=np.float64, budget_bytes: int = DEFAULT_CHUNK_BYTES) -> int:
     """Hypotheses in flight at once (a multiple of :data:`~expertise_irl.solver.LANES`).
 
@@ -173,7 +186,7 @@ def solve(
         chunk_size = default_chunk_size(mdp, np.dtype(dtype))
     groups = max(1, -(-min(int(chunk_size), H) // LANES))
     slots = groups * LANES
-    prep = kernel.prepare(mdp, jdtype)
+    prep = _prepared(mdp, dtype)
     scaled0 = np.zeros((H, prep.n_rows))
     if v_init is not None:
         v_init = np.asarray(v_init, dtype=np.float64)

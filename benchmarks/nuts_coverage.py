@@ -1,0 +1,87 @@
+"""How often do NUTS's 90% credible intervals contain the truth?
+
+    python benchmarks/nuts_coverage.py [--seeds 20] [--map crossroads] [--json out.json]
+
+For each seed: θ* ~ Dirichlet(1, ..., 1) (inside the simplex, so an equal-tailed interval
+can contain it), β* ~ U(0.1, 2), 40 episodes simulated on a bundled map, then exactly what
+`expertise-irl infer --method nuts` runs (by default 4 chains × (500 warm-up + 500 draws);
+--chains/--warmup/--samples as in the CLI). Reports,
+per parameter, the fraction of seeds whose 90% interval contains the true value, the
+fraction where all parameters are covered at once, and R-hat / ESS / divergences.
+A calibrated posterior covers each parameter on about 90% of seeds; with 20 seeds the
+binomial standard error of a coverage rate near 0.9 is about 0.07.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import machine_info
+
+from expertise_irl.demos import simulate
+from expertise_irl.inference.continuous import MethodOptions, run_method
+from expertise_irl.worlds.zones import load_bundled
+
+warnings.filterwarnings("ignore", category=FutureWarning)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--map", default="crossroads")
+    ap.add_argument("--chains", type=int, default=4)
+    ap.add_argument("--warmup", type=int, default=500)
+    ap.add_argument("--samples", type=int, default=500)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+    opts = MethodOptions(chains=args.chains, warmup=args.warmup, samples=args.samples)
+    info = machine_info()
+    print("machine:", ", ".join(f"{k}={v}" for k, v in info.items()))
+    mdp = load_bundled(args.map).to_mdp()
+    K = mdp.n_features
+    rows = []
+    print(f"{'seed':>4} {'β*':>6} {'β 90% interval':>20} {'θ covered':>10} {'R-hat max':>9} "
+          f"{'ESS min':>8} {'s':>6}")
+    for seed in range(args.seeds):
+        rng = np.random.default_rng(seed)
+        theta, beta = rng.dirichlet(np.ones(K)), float(rng.uniform(0.1, 2.0))
+        trajs = simulate(mdp, theta, beta, 40, rng)
+        t = time.perf_counter()
+        res = run_method("nuts", mdp, trajs, opts, seed)
+        wall = time.perf_counter() - t
+        ci = res["credible_intervals"]
+        cov_beta = ci["beta"][0] <= beta <= ci["beta"][1]
+        cov_theta = [lo <= x <= hi for x, (lo, hi) in zip(theta, ci["theta"], strict=True)]
+        d = res["diagnostics"]
+        rhat = max([d["r_hat"]["beta"], *d["r_hat"]["theta"]])
+        ess = min([d["ess_bulk"]["beta"], *d["ess_bulk"]["theta"]])
+        rows.append({"seed": seed, "theta_true": theta.tolist(), "beta_true": beta,
+                     "interval_beta": ci["beta"], "interval_theta": ci["theta"],
+                     "covered_beta": cov_beta, "covered_theta": cov_theta,
+                     "r_hat_max": rhat, "ess_min": ess, "divergences": d["divergences"], "wall_s": wall})
+        print(f"{seed:>4} {beta:6.3f} [{ci['beta'][0]:8.3f}, {ci['beta'][1]:8.3f}] "
+              f"{sum(cov_theta):>5}/{K:<4} {rhat:9.3f} {ess:8.0f} {wall:6.1f}")
+    n = len(rows)
+    cb = np.mean([r["covered_beta"] for r in rows])
+    ct = np.mean([r["covered_theta"] for r in rows], axis=0)
+    joint = np.mean([r["covered_beta"] and all(r["covered_theta"]) for r in rows])
+    print(f"\ncoverage of the 90% intervals over {n} seeds: β {cb:.2f}; "
+          + ", ".join(f"θ_{k} {c:.2f}" for k, c in enumerate(ct))
+          + f"; all {K + 1} parameters at once {joint:.2f}")
+    print(f"max R-hat {max(r['r_hat_max'] for r in rows):.3f}, min bulk ESS "
+          f"{min(r['ess_min'] for r in rows):.0f}, divergences {sum(r['divergences'] for r in rows)}, "
+          f"median time {np.median([r['wall_s'] for r in rows]):.1f} s")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
