@@ -2,14 +2,22 @@
 
     python benchmarks/nuts_coverage.py [--seeds 20] [--map crossroads] [--json out.json]
 
-For each seed: θ* ~ Dirichlet(1, ..., 1) (inside the simplex, so an equal-tailed interval
-can contain it), β* ~ U(0.1, 2), 40 episodes simulated on a bundled map, then exactly what
+For each seed: a truth (θ*, β*), 40 episodes simulated on a bundled map, then exactly what
 `expertise-irl infer --method nuts` runs (by default 4 chains × (500 warm-up + 500 draws);
 --chains/--warmup/--samples as in the CLI). Reports,
 per parameter, the fraction of seeds whose 90% interval contains the true value, the
 fraction where all parameters are covered at once, and R-hat / ESS / divergences.
 A calibrated posterior covers each parameter on about 90% of seeds; with 20 seeds the
 binomial standard error of a coverage rate near 0.9 is about 0.07.
+
+Truths (--truth):
+  prior    θ* ~ Dirichlet(1, ..., 1), β* ~ Normal(5.005, 1.5) truncated to [0.01, 10]: the
+           prior NUTS assumes, so coverage should match the nominal 90% on average
+           (simulation-based calibration);
+  uniform  θ* ~ Dirichlet(1, ..., 1), β* ~ U(0.1, 2): more expert people than the prior
+           expects. When their episodes never reach the goal (see the README on noisy
+           people), the length weight is nearly unidentified and the posterior ridge
+           follows the prior, so coverage drops below nominal.
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--map", default="crossroads")
+    ap.add_argument("--truth", choices=("prior", "uniform"), default="prior")
     ap.add_argument("--chains", type=int, default=4)
     ap.add_argument("--warmup", type=int, default=500)
     ap.add_argument("--samples", type=int, default=500)
@@ -52,14 +61,20 @@ def main() -> None:
           f"{'ESS min':>8} {'s':>6}")
     for seed in range(args.seeds):
         rng = np.random.default_rng(seed)
-        theta, beta = rng.dirichlet(np.ones(K)), float(rng.uniform(0.1, 2.0))
+        theta = rng.dirichlet(np.ones(K))
+        if args.truth == "uniform":
+            beta = float(rng.uniform(0.1, 2.0))
+        else:  # truncated normal by rejection
+            beta = -1.0
+            while not 0.01 <= beta <= 10.0:
+                beta = float(rng.normal(5.005, 1.5))
         trajs = simulate(mdp, theta, beta, 40, rng)
         t = time.perf_counter()
         res = run_method("nuts", mdp, trajs, opts, seed)
         wall = time.perf_counter() - t
         ci = res["credible_intervals"]
-        cov_beta = ci["beta"][0] <= beta <= ci["beta"][1]
-        cov_theta = [lo <= x <= hi for x, (lo, hi) in zip(theta, ci["theta"], strict=True)]
+        cov_beta = bool(ci["beta"][0] <= beta <= ci["beta"][1])
+        cov_theta = [bool(lo <= x <= hi) for x, (lo, hi) in zip(theta, ci["theta"], strict=True)]
         d = res["diagnostics"]
         rhat = max([d["r_hat"]["beta"], *d["r_hat"]["theta"]])
         ess = min([d["ess_bulk"]["beta"], *d["ess_bulk"]["theta"]])
