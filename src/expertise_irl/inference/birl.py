@@ -102,11 +102,12 @@ from ..demos import Trajectories, validate
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..planning import solve
+from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE
 
 VARIANTS = ("box", "simplex")
 MOVES = ("both", "either")
 #: Sec. VII-A prior on β: Normal(5.005, 1.5) truncated to [0.01, 10].
-PAPER_BETA_PRIOR = (5.005, 1.5, 0.01, 10.0)
+PAPER_BETA_PRIOR = (BETA_PRIOR_MEAN, BETA_PRIOR_SD, *BETA_RANGE)
 _START_TRIES = 1000
 _GRID_RTOL = 1e-9
 

@@ -25,9 +25,7 @@ from ..demos import Trajectories
 from ..errors import InputError
 from ..likelihood import make_log_likelihood, pair_counts
 from ..mdp import TabularMDP
-
-BETA_PRIOR_MEAN, BETA_PRIOR_SD = 5.005, 1.5
-BETA_RANGE = (0.01, 10.0)
+from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE
 
 
 def paper_log_prior(theta, beta):
