@@ -123,6 +123,7 @@ def make_log_likelihood(
         v0 = jnp.zeros(S) if v0 is None else v0
         v = _fixed_point(feats, next_idx, avail, gamma, tol, max_iter, w, jax.lax.stop_gradient(v0))
         _, log_pi = _bellman(feats, next_idx, avail, gamma, w, v)
-        return jnp.sum(jnp.where(n > 0, n * jnp.where(n > 0, log_pi, 0.0), 0.0)), v
+        # Unobserved pairs (including unavailable ones, log π = -inf) contribute nothing.
+        return jnp.sum(n * jnp.where(n > 0, log_pi, 0.0)), v
 
     return f

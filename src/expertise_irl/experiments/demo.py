@@ -83,14 +83,12 @@ def run_demo(
     random map generated from the seed.
     """
     map_seq, set_seq, truth_seq, sim_seq = np.random.SeedSequence(seed).spawn(4)
-    if zone_map is not None:
-        pass
-    elif map_spec is None:
+    if zone_map is None and map_spec is not None:
+        zone_map = resolve_map(map_spec)
+    if zone_map is None:
         lo, hi = DEMO_MAP_SIZE
         zone_map = generate_map(np.random.default_rng(map_seq), min_size=lo, max_size=hi,
                                 name=f"generated (seed {seed})")
-    else:
-        zone_map = resolve_map(map_spec)
     mdp = zone_map.to_mdp()
     all_thetas = theta_grid(THETA_PRESETS["paper-sim"], mdp.n_features)
     thetas = sample_thetas(all_thetas, k, np.random.default_rng(set_seq))

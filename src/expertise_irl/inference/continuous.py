@@ -36,17 +36,13 @@ class MethodOptions:
     samples: int = 500  # nuts: draws per chain
 
 
-def _intervals(theta: np.ndarray, beta: np.ndarray) -> dict[str, Any]:
-    q = [(1 - CREDIBLE) / 2, (1 + CREDIBLE) / 2]
-    return {"beta": np.quantile(beta, q).tolist(), "theta": np.quantile(theta, q, axis=0).T.tolist()}
-
-
 def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOptions,
                seed: int) -> dict[str, Any]:
     """Run ``method`` and return its result fields, plus ``draws`` (chain, θ, β) if it samples."""
     t0 = time.perf_counter()
     if method == "birl":
         from .birl import extended_birl
+        from .gradient import credible_intervals
 
         r = extended_birl(mdp, trajs, n_iter=opts.iterations, delta=opts.delta,
                           beta_step=opts.beta_step, variant=opts.variant,
@@ -59,7 +55,7 @@ def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOp
             "beta_hat_normalized": float(r.mean_beta_normalized),
             "map": {"theta": r.best_theta.tolist(), "beta": float(r.best_beta),
                     "log_posterior": float(r.best_log_posterior)},
-            "credible_intervals": _intervals(theta, beta),
+            "credible_intervals": credible_intervals(theta, beta, CREDIBLE),
             "diagnostics": {"acceptance_rate": r.acceptance_rate, "out_of_bounds": r.n_out_of_bounds,
                             "burn_in": r.n_burn, "solves": r.n_solves, "sweeps": r.n_sweeps,
                             "variant": r.variant, "moves": r.moves},

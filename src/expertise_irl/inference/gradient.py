@@ -120,6 +120,13 @@ def map_estimate(
                      np.array(optima), evaluations)
 
 
+def credible_intervals(theta: np.ndarray, beta: np.ndarray, prob: float = 0.9) -> dict:
+    """Equal-tailed intervals of draws ``theta [n, K]``, ``beta [n]``:
+    ``{"beta": [low, high], "theta": [[low, high], ...]}``."""
+    q = [(1 - prob) / 2, (1 + prob) / 2]
+    return {"beta": np.quantile(beta, q).tolist(), "theta": np.quantile(theta, q, axis=0).T.tolist()}
+
+
 @dataclass(frozen=True)
 class NUTSResult:
     """Posterior samples from NUTS and their diagnostics.
@@ -152,10 +159,7 @@ class NUTSResult:
 
     def credible_intervals(self, prob: float = 0.9) -> dict:
         """Equal-tailed intervals: ``{"beta": [low, high], "theta": [[low, high], ...]}``."""
-        q = [(1 - prob) / 2, (1 + prob) / 2]
-        th = self.theta.reshape(-1, self.theta.shape[-1])
-        return {"beta": np.quantile(self.beta, q).tolist(),
-                "theta": np.quantile(th, q, axis=0).T.tolist()}
+        return credible_intervals(self.theta.reshape(-1, self.theta.shape[-1]), self.beta.ravel(), prob)
 
 
 def nuts_posterior(
