@@ -1,33 +1,50 @@
 """expertise-irl: joint inference of reward (θ) and expertise (β) from demonstrations.
 
-Importing the package enables float64 in JAX: soft value iteration at
-small β needs it.
+The public names below are imported on first use, so ``import expertise_irl`` (and the
+command line's ``--help``) does not pay for JAX. The modules that solve enable float64
+in JAX when they are imported: soft value iteration at small β needs it.
 """
 
+from __future__ import annotations
+
+import importlib
 from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING, Any
 
 try:
     __version__ = version("expertise-irl")
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+unknown"
-from .demos import Trajectories, read_demos_csv, simulate, write_demos_csv
-from .errors import InputError
-from .hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, expertise_group, theta_grid
-from .inference.belief import DiscreteBelief
-from .mdp import TabularMDP
-from .metrics import cosine_similarity, expertise_distance, policy_regret
-from .planning import ConvergenceError, SoftSolution, solve
-from .worlds.zones import ZoneMap, generate_map, load_bundled, load_map, parse_map
-
 del version, PackageNotFoundError
+
+#: public name -> module that defines it (relative to this package)
+_EXPORTS = {
+    "Trajectories": ".demos", "read_demos_csv": ".demos", "simulate": ".demos",
+    "write_demos_csv": ".demos",
+    "ConvergenceError": ".errors", "InputError": ".errors",
+    "BETA_PRESETS": ".hypotheses", "THETA_PRESETS": ".hypotheses", "HypothesisSet": ".hypotheses",
+    "expertise_group": ".hypotheses", "theta_grid": ".hypotheses",
+    "DiscreteBelief": ".inference.belief",
+    "extended_birl": ".inference.birl", "BIRLResult": ".inference.birl",
+    "map_estimate": ".inference.gradient", "MAPResult": ".inference.gradient",
+    "nuts_posterior": ".inference.gradient", "NUTSResult": ".inference.gradient",
+    "TabularMDP": ".mdp",
+    "cosine_similarity": ".metrics", "expertise_distance": ".metrics", "policy_regret": ".metrics",
+    "SoftSolution": ".planning", "solve": ".planning",
+    "ZoneMap": ".worlds.zones", "generate_map": ".worlds.zones", "load_bundled": ".worlds.zones",
+    "load_map": ".worlds.zones", "parse_map": ".worlds.zones",
+}
 
 __all__ = [
     "BETA_PRESETS",
     "THETA_PRESETS",
+    "BIRLResult",
     "ConvergenceError",
     "DiscreteBelief",
     "HypothesisSet",
     "InputError",
+    "MAPResult",
+    "NUTSResult",
     "SoftSolution",
     "TabularMDP",
     "Trajectories",
@@ -36,9 +53,12 @@ __all__ = [
     "cosine_similarity",
     "expertise_distance",
     "expertise_group",
+    "extended_birl",
     "generate_map",
     "load_bundled",
     "load_map",
+    "map_estimate",
+    "nuts_posterior",
     "parse_map",
     "policy_regret",
     "read_demos_csv",
@@ -47,3 +67,29 @@ __all__ = [
     "theta_grid",
     "write_demos_csv",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'expertise_irl' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
+    from .demos import Trajectories, read_demos_csv, simulate, write_demos_csv
+    from .errors import ConvergenceError, InputError
+    from .hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, expertise_group, theta_grid
+    from .inference.belief import DiscreteBelief
+    from .inference.birl import BIRLResult, extended_birl
+    from .inference.gradient import MAPResult, NUTSResult, map_estimate, nuts_posterior
+    from .mdp import TabularMDP
+    from .metrics import cosine_similarity, expertise_distance, policy_regret
+    from .planning import SoftSolution, solve
+    from .worlds.zones import ZoneMap, generate_map, load_bundled, load_map, parse_map

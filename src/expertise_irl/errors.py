@@ -15,6 +15,10 @@ class InputError(ValueError):
     """A user-supplied input is invalid; the message says where and why."""
 
 
+class ConvergenceError(RuntimeError):
+    """Soft value iteration did not reach its tolerance within ``max_iter`` backups."""
+
+
 def where(source: str | Path | None, line: int | None = None, col: int | None = None) -> str:
     """Format a location prefix such as ``maps/a.txt:3:7: `` (empty if unknown)."""
     if source is None:

@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import solver as kernel
-from .errors import InputError
+from .errors import ConvergenceError, InputError
 from .mdp import TabularMDP
 from .solver import LANES
 
@@ -34,10 +34,6 @@ jax.config.update("jax_enable_x64", True)
 DEFAULT_TOL = 1e-8
 #: Memory budget for one chunk of hypotheses (bytes of [H, S, A] work arrays).
 DEFAULT_CHUNK_BYTES = 1 * 2**20
-
-
-class ConvergenceError(RuntimeError):
-    """Soft value iteration did not reach its tolerance within ``max_iter`` backups."""
 
 
 class SoftSolution(NamedTuple):

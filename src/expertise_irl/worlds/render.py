@@ -511,3 +511,14 @@ def render_summary_png(
     if title:
         fig.suptitle(title, fontsize=11)
     return _save(fig, path)
+
+
+def render_demo_png(path: str | Path, run, *, title: str | None = None) -> Path:
+    """The ``expertise-irl demo`` figure of a :class:`~expertise_irl.experiments.demo.DemoRun`."""
+    b = run.belief
+    betas, pb = b.marginal_beta()
+    thetas, pt = b.marginal_theta()
+    return render_summary_png(
+        path, run.zone_map, paths_to_xy(run.trajectories, run.mdp), betas, pb, thetas, pt,
+        run.mdp.feature_names, theta_true=run.theta_true, beta_true=run.beta_true, title=title,
+    )

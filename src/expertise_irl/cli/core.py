@@ -1,155 +1,29 @@
-"""Command-line interface: ``expertise-irl demo | simulate | infer | export-mdp | render | maps``.
-
-Every problem with the user's input is reported as one line on stderr,
-``error: <file>:<line>: <what is wrong>``, with exit code 2 and no traceback.
-Existing output files are never overwritten unless ``--force`` is given.
-"""
+"""Core commands: ``demo | simulate | infer | export-mdp | render | maps``."""
 
 from __future__ import annotations
 
-import functools
-import math
-import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 import typer
-from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
-from typer.core import TyperGroup
 
-from . import __version__
-from .errors import InputError
-from .planning import ConvergenceError
-
-
-class _OneLineErrors(TyperGroup):
-    """Report command-line parsing errors (bad option values, missing options) as one line.
-
-    Click's default is a multi-line usage panel; our contract is ``error: ...`` and exit 2.
-    """
-
-    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
-        try:
-            rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,
-                              standalone_mode=False, **extra)
-        except Exception as exc:
-            if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):  # click's UsageError & co.
-                message = exc.format_message()
-                if message:  # empty when help was shown for a bare command
-                    _print_error(f"{message} (see --help)")
-                sys.exit(exc.exit_code)
-            if type(exc).__name__ == "Abort":
-                _print_error("aborted")
-                sys.exit(1)
-            raise
-        if not standalone_mode:
-            return rv
-        sys.exit(rv if isinstance(rv, int) else 0)
-
-
-app = typer.Typer(
-    name="expertise-irl",
-    cls=_OneLineErrors,
-    help="Infer what a person wants (reward weights θ) and how expert they are (temperature β) "
-    "from demonstrations.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
+from ..errors import InputError
+from ._app import (
+    _check_beta,
+    _load_mdp,
+    _parse_theta,
+    _progress,
+    _say,
+    _solve_progress,
+    app,
+    err,
+    handles_errors,
+    out,
 )
-out = Console()
-err = Console(stderr=True)
-
-
-def _say(message: str) -> None:
-    """Print plain text (no rich markup: θ vectors in brackets must print as they are)."""
-    out.print(message, markup=False, highlight=False, soft_wrap=True)
-
-
-def _print_error(message: str) -> None:
-    err.print("[bold red]error:[/] ", end="", highlight=False)
-    err.print(message, markup=False, highlight=False, soft_wrap=True)
-
-
-def _fail(message: str, code: int = 2) -> None:
-    _print_error(message)
-    raise typer.Exit(code)
-
-
-def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """Turn input problems into a one-line message and exit code 2 (no traceback)."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return fn(*args, **kwargs)
-        except InputError as exc:
-            _fail(str(exc))
-        except ConvergenceError as exc:
-            _fail(str(exc), code=1)
-        except OSError as exc:  # a file we were asked to read or write cannot be
-            _fail(f"{exc.filename or 'file'}: {exc.strerror or exc}")
-        except KeyboardInterrupt:
-            _fail("interrupted", code=130)
-
-    return wrapper
-
-
-def _progress() -> Progress:
-    return Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total} hypotheses"),
-        TimeElapsedColumn(),
-        console=err,
-    )
-
-
-def _solve_progress(bar: Progress, description: str) -> Callable[[int, int], None]:
-    task = bar.add_task(description, total=None)
-
-    def update(done: int, total: int) -> None:
-        bar.update(task, completed=done, total=total)
-
-    return update
-
-
-def _load_mdp(map_spec: str | None, mdp_path: Path | None):
-    """(mdp, zone_map or None) from exactly one of MAP or --mdp."""
-    from .mdp import TabularMDP
-    from .worlds.zones import resolve_map
-
-    if (map_spec is None) == (mdp_path is None):
-        raise InputError("give exactly one of MAP (a map file or bundled map name) or --mdp FILE.npz")
-    if mdp_path is not None:
-        return TabularMDP.load(mdp_path), None
-    zone_map = resolve_map(map_spec)
-    return zone_map.to_mdp(), zone_map
-
-
-def _parse_theta(spec: str, n_features: int, names) -> np.ndarray:
-    from .hypotheses import normalize_theta
-
-    try:
-        values = [float(x) for x in spec.split(",")]
-    except ValueError:
-        raise InputError(f"--theta: {spec!r} is not a comma-separated list of numbers") from None
-    if len(values) != n_features:
-        raise InputError(
-            f"--theta has {len(values)} values but the MDP has {n_features} features ({', '.join(names)})"
-        )
-    return normalize_theta(values, what="--theta")
-
-
-def _check_beta(beta: float, what: str = "--beta") -> float:
-    if not math.isfinite(beta) or beta <= 0:
-        raise InputError(f"{what} must be a number > 0, got {beta:g}")
-    return beta
 
 
 # --------------------------------------------------------------------------- commands
@@ -169,10 +43,10 @@ def demo(
     force: Annotated[bool, typer.Option(help="Overwrite this seed's figure and result.")] = False,
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
-    from .experiments.demo import demo_outputs, run_demo
-    from .results import check_writable, discrete_result, write_json
-    from .worlds.render import paths_to_xy, render_summary_png
-    from .worlds.zones import resolve_map
+    from ..experiments.demo import demo_outputs, run_demo
+    from ..results import check_writable, discrete_result, write_json
+    from ..worlds.render import render_demo_png
+    from ..worlds.zones import resolve_map
 
     zone_map = resolve_map(map_spec) if map_spec else None
     if zone_map is not None:
@@ -207,13 +81,7 @@ def demo(
     table.add_row("policy regret", "", f"{s['policy_regret']:.3g}")
     out.print(table)
     b = run.belief
-    betas, pb = b.marginal_beta()
-    thetas, pt = b.marginal_theta()
-    render_summary_png(
-        png, run.zone_map, paths_to_xy(run.trajectories, run.mdp), betas, pb, thetas, pt, names,
-        theta_true=run.theta_true, beta_true=run.beta_true,
-        title=f"seed {seed}: β*={run.beta_true:g}, β̂={b.mean_beta:.3g}",
-    )
+    render_demo_png(png, run, title=f"seed {seed}: β*={run.beta_true:g}, β̂={b.mean_beta:.3g}")
     doc = discrete_result(
         b, feature_names=names,
         settings={"command": "demo", "seed": seed, "map": run.zone_map.name, "episodes": episodes,
@@ -237,8 +105,8 @@ def export_mdp(
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Compile a text map to the MDP archive (.npz) that every command accepts."""
-    from .results import check_writable
-    from .worlds.zones import resolve_map
+    from ..results import check_writable
+    from ..worlds.zones import resolve_map
 
     check_writable(out_path, force=force)
     mdp = resolve_map(map_spec).to_mdp()
@@ -261,9 +129,9 @@ def simulate(
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Simulate a max-entropy person with preferences θ* and expertise β*; write demonstrations CSV."""
-    from .demos import simulate as simulate_episodes
-    from .demos import write_demos_csv
-    from .results import check_writable
+    from ..demos import simulate as simulate_episodes
+    from ..demos import write_demos_csv
+    from ..results import check_writable
 
     check_writable(out_path, force=force)
     mdp, _ = _load_mdp(map_spec, mdp_path)
@@ -314,12 +182,12 @@ def infer(
     search the continuous space (θ on the simplex or box, β > 0). --seed makes every method
     reproducible.
     """
-    from .demos import read_demos_csv
-    from .hypotheses import HypothesisSet, resolve_betas, resolve_thetas
-    from .hypotheses import sample_thetas as sample
-    from .inference.belief import DiscreteBelief
-    from .inference.continuous import METHODS
-    from .results import check_writable, discrete_result, file_digest, write_json
+    from ..demos import read_demos_csv
+    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from ..hypotheses import sample_thetas as sample
+    from ..inference.belief import DiscreteBelief
+    from ..inference.continuous import METHODS
+    from ..results import check_writable, discrete_result, file_digest, write_json
 
     if method not in METHODS:
         raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
@@ -329,7 +197,7 @@ def infer(
     mdp, zone_map = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
     if method != "discrete":
-        from .inference.continuous import MethodOptions
+        from ..inference.continuous import MethodOptions
 
         opts = MethodOptions(iterations=iterations, delta=delta, beta_step=beta_step, variant=variant,
                              starts=starts, chains=chains, warmup=warmup, samples=samples)
@@ -380,8 +248,8 @@ MAX_TOL = 0.1  # nats; a looser tolerance would make the log-likelihoods meaning
 def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, force, source) -> None:
     from dataclasses import asdict
 
-    from .inference.continuous import run_method
-    from .results import INLINE_DRAWS, check_writable, continuous_result, samples_path_for, write_json
+    from ..inference.continuous import run_method
+    from ..results import INLINE_DRAWS, check_writable, continuous_result, samples_path_for, write_json
 
     samples_path = samples_path_for(out_path)
     if method == "nuts" and opts.chains * opts.samples > INLINE_DRAWS:
@@ -423,10 +291,10 @@ def render(
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Draw a map (and optionally demonstrations) as a PNG in the style of the paper's Fig. 1."""
-    from .demos import read_demos_csv
-    from .results import check_writable
-    from .worlds.render import paths_to_xy, render_map_png
-    from .worlds.zones import resolve_map
+    from ..demos import read_demos_csv
+    from ..results import check_writable
+    from ..worlds.render import paths_to_xy, render_map_png
+    from ..worlds.zones import resolve_map
 
     check_writable(out_path, force=force)
     _check_figure_format(out_path)
@@ -453,28 +321,10 @@ def _check_figure_format(path: Path) -> None:
 @app.command()
 def maps() -> None:
     """List the bundled example maps."""
-    from .worlds.zones import bundled_maps as names
-    from .worlds.zones import load_bundled
+    from ..worlds.zones import bundled_maps as names
+    from ..worlds.zones import load_bundled
 
     for name in names():
         m = load_bundled(name)
         _say(f"{name:12s} {m.width}×{m.height}, {int(m.passable.sum())} states")
 
-
-def _version(value: bool) -> None:
-    if value:
-        _say(f"expertise-irl {__version__}")
-        raise typer.Exit()
-
-
-@app.callback()
-def _main(
-    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
-                                          help="Show the version and exit.")] = False,
-) -> None:
-    """Joint inference of expertise and reward from demonstrations."""
-
-
-def main() -> None:
-    """Console-script entry point."""
-    app()

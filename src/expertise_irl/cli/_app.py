@@ -1,0 +1,162 @@
+"""The typer application and what every command group shares.
+
+Every problem with the user's input is reported as one line on stderr,
+``error: <file>:<line>: <what is wrong>``, with exit code 2 and no traceback.
+Existing output files are never overwritten unless ``--force`` is given.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from typer.core import TyperGroup
+
+from .. import __version__
+from ..errors import ConvergenceError, InputError
+
+
+class _OneLineErrors(TyperGroup):
+    """Report command-line parsing errors (bad option values, missing options) as one line.
+
+    Click's default is a multi-line usage panel; our contract is ``error: ...`` and exit 2.
+    """
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,
+                              standalone_mode=False, **extra)
+        except Exception as exc:
+            if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):  # click's UsageError & co.
+                message = exc.format_message()
+                if message:  # empty when help was shown for a bare command
+                    _print_error(f"{message} (see --help)")
+                sys.exit(exc.exit_code)
+            if type(exc).__name__ == "Abort":
+                _print_error("aborted")
+                sys.exit(1)
+            raise
+        if not standalone_mode:
+            return rv
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+app = typer.Typer(
+    name="expertise-irl",
+    cls=_OneLineErrors,
+    help="Infer what a person wants (reward weights θ) and how expert they are (temperature β) "
+    "from demonstrations.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+out = Console()
+err = Console(stderr=True)
+
+
+def _say(message: str) -> None:
+    """Print plain text (no rich markup: θ vectors in brackets must print as they are)."""
+    out.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+def _print_error(message: str) -> None:
+    err.print("[bold red]error:[/] ", end="", highlight=False)
+    err.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+def _fail(message: str, code: int = 2) -> None:
+    _print_error(message)
+    raise typer.Exit(code)
+
+
+def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn input problems into a one-line message and exit code 2 (no traceback)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except InputError as exc:
+            _fail(str(exc))
+        except ConvergenceError as exc:
+            _fail(str(exc), code=1)
+        except OSError as exc:  # a file we were asked to read or write cannot be
+            _fail(f"{exc.filename or 'file'}: {exc.strerror or exc}")
+        except KeyboardInterrupt:
+            _fail("interrupted", code=130)
+
+    return wrapper
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[progress.description]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} hypotheses"),
+        TimeElapsedColumn(),
+        console=err,
+    )
+
+
+def _solve_progress(bar: Progress, description: str) -> Callable[[int, int], None]:
+    task = bar.add_task(description, total=None)
+
+    def update(done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    return update
+
+
+def _load_mdp(map_spec: str | None, mdp_path: Path | None):
+    """(mdp, zone_map or None) from exactly one of MAP or --mdp."""
+    from ..mdp import TabularMDP
+    from ..worlds.zones import resolve_map
+
+    if (map_spec is None) == (mdp_path is None):
+        raise InputError("give exactly one of MAP (a map file or bundled map name) or --mdp FILE.npz")
+    if mdp_path is not None:
+        return TabularMDP.load(mdp_path), None
+    zone_map = resolve_map(map_spec)
+    return zone_map.to_mdp(), zone_map
+
+
+def _parse_theta(spec: str, n_features: int, names) -> np.ndarray:
+    from ..hypotheses import normalize_theta
+
+    try:
+        values = [float(x) for x in spec.split(",")]
+    except ValueError:
+        raise InputError(f"--theta: {spec!r} is not a comma-separated list of numbers") from None
+    if len(values) != n_features:
+        raise InputError(
+            f"--theta has {len(values)} values but the MDP has {n_features} features ({', '.join(names)})"
+        )
+    return normalize_theta(values, what="--theta")
+
+
+def _check_beta(beta: float, what: str = "--beta") -> float:
+    if not math.isfinite(beta) or beta <= 0:
+        raise InputError(f"{what} must be a number > 0, got {beta:g}")
+    return beta
+
+
+def _version(value: bool) -> None:
+    if value:
+        _say(f"expertise-irl {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Show the version and exit.")] = False,
+) -> None:
+    """Joint inference of expertise and reward from demonstrations."""
