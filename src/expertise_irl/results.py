@@ -73,7 +73,9 @@ def discrete_result(belief: DiscreteBelief, *, feature_names, settings: dict[str
             {"episode": None if i == 0 else int(episodes[i - 1]),
              "step": None if i == 0 else int(steps[i - 1]),
              "beta_hat": float(trace.mean_beta[i]), "theta_hat": _vec(trace.mean_theta[i]),
-             "entropy": float(trace.entropy[i])}
+             "entropy": float(trace.entropy[i]),
+             "group_probabilities": trace.groups_at(i),
+             "beta_band": [float(trace.beta_low[i]), float(trace.beta_high[i])]}
             for i in range(len(trace.mean_beta))
         ]
     return doc

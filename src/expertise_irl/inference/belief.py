@@ -34,12 +34,31 @@ class Trace(NamedTuple):
         mean_theta: ``[N + 1, K]`` E[θ].
         entropy: ``[N + 1]`` posterior entropy (nats).
         truth_probability: ``[N + 1]`` probability of hypothesis ``truth`` (NaN if not given).
+        group_probabilities: ``[N + 1, 3]`` posterior mass of the expertise groups, in the
+            order of :data:`TRACE_GROUPS` (high, medium, low).
+        beta_low, beta_high: ``[N + 1]`` the 5% and 95% quantiles of the β marginal. β takes
+            only the values of the grid, so these are grid values: the smallest β whose
+            cumulative probability (β sorted ascending) reaches 0.05, resp. 0.95. The band
+            ``[beta_low, beta_high]`` holds at least 90% of the mass.
     """
 
     mean_beta: np.ndarray
     mean_theta: np.ndarray
     entropy: np.ndarray
     truth_probability: np.ndarray
+    group_probabilities: np.ndarray
+    beta_low: np.ndarray
+    beta_high: np.ndarray
+
+    def groups_at(self, i: int) -> dict[str, float]:
+        """``{"high": p, "medium": p, "low": p}`` after ``i`` actions."""
+        return {g: float(v) for g, v in zip(TRACE_GROUPS, self.group_probabilities[i], strict=True)}
+
+
+#: Order of the columns of :attr:`Trace.group_probabilities`.
+TRACE_GROUPS = ("high", "medium", "low")
+#: Quantiles of the β marginal that bound the credible band of a trace (a 90% band).
+TRACE_BAND = (0.05, 0.95)
 
 
 def normalize_log(logw: np.ndarray, axis: int = 0) -> np.ndarray:
@@ -244,18 +263,27 @@ class DiscreteBelief:
         return {k: v / total for k, v in out.items()}
 
     def trace(self, trajs: Trajectories, *, truth: int | None = None, max_block: int = 2**24) -> Trace:
-        """Live estimates: E[β], E[θ], entropy after each action of ``trajs``, in order.
+        """Live estimates after each action of ``trajs``, in order (see :class:`Trace`).
 
-        Equivalent to streaming :meth:`update_action` over every pair, but vectorised.
-        ``max_block`` bounds the ``H × pairs`` block held in memory at once.
+        E[β], E[θ], entropy, expertise-group probabilities and the 90% band of the β
+        marginal. Equivalent to streaming :meth:`update_action` over every pair, but
+        vectorised. ``max_block`` bounds the ``H × pairs`` block held in memory at once.
         """
         states, actions = _check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         H, N = len(self.hypotheses), len(states)
         theta, beta = self.hypotheses.theta, self.hypotheses.beta
+        grid = np.unique(beta)  # ascending β values of the set
+        in_value = (beta[None, :] == grid[:, None]).astype(float)  # [n_beta, H]
+        groups = np.array([expertise_group(float(b)) for b in grid])
+        in_group = np.stack([groups == g for g in TRACE_GROUPS]).astype(float)  # [3, n_beta]
+        q_lo, q_hi = TRACE_BAND
         mb = np.empty(N + 1)
         mt = np.empty((N + 1, theta.shape[1]))
         ent = np.empty(N + 1)
         tp = np.full(N + 1, np.nan)
+        gp = np.empty((N + 1, len(TRACE_GROUPS)))
+        blo = np.empty(N + 1)
+        bhi = np.empty(N + 1)
         running = self.log_prior + self.log_likelihood
         block = max(1, max_block // max(H, 1))
 
@@ -267,6 +295,11 @@ class DiscreteBelief:
             ent[out] = _entropy(p, lp, axis=0)
             if truth is not None:
                 tp[out] = p[truth]
+            pb = in_value @ p  # [n_beta, n] β marginal
+            gp[out] = (in_group @ pb).T
+            cdf = np.cumsum(pb, axis=0) / pb.sum(axis=0)
+            blo[out] = grid[np.argmax(cdf >= q_lo - 1e-12, axis=0)]
+            bhi[out] = grid[np.argmax(cdf >= q_hi - 1e-12, axis=0)]
 
         stats(running[:, None], slice(0, 1))
         for start in range(0, N, block):
@@ -281,4 +314,4 @@ class DiscreteBelief:
                 )
             stats(cum, slice(start + 1, stop + 1))
             running = cum[:, -1]
-        return Trace(mb, mt, ent, tp)
+        return Trace(mb, mt, ent, tp, gp, blo, bhi)
