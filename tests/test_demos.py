@@ -346,6 +346,14 @@ GRID = "episode,step,x,y\n"
             ["episode 0 step 2", "acts from state 5 (cell x=3, y=1), which is terminal"],
         ),
         (GRID + "0,0,0,0\n0,2,0,1\n", 3, ["step 2 follows step 0"]),
+        # An episode that starts in the goal is blamed on its first row, step 0, in both formats.
+        (STATE + "0,0,5,0\n", 2, ["episode 0 step 0: starts in state 5 (cell x=3, y=1)", "terminal"]),
+        (GRID + "0,0,3,1\n0,1,3,2\n", 2, ["episode 0 step 0: starts in state 5 (cell x=3, y=1)"]),
+        (
+            STATE + "0,0,3,0\n1,0,5,0\n",
+            3,
+            ["episode 1 step 0: starts in state 5 (cell x=3, y=1)", "must start outside every goal"],
+        ),
     ],
 )
 def test_csv_errors(small, tmp_path, text, line, fragments):

@@ -284,6 +284,11 @@ def _pair_error(mdp: TabularMDP, tr: Trajectories) -> tuple[int, str] | None:
             f"{mdp.describe_state(si)} does not follow from {mdp.describe_state(p)} by "
             f"{_action_label(mdp, pa)}: expected {mdp.describe_state(int(nxt[i - 1]))}"
         )
+    if term[i] and (i == 0 or tr.episode[i] != tr.episode[i - 1]):
+        return i, (
+            f"starts in {mdp.describe_state(si)}, which is terminal (a goal): "
+            "an episode must start outside every goal"
+        )
     if term[i]:
         return i, (
             f"acts from {mdp.describe_state(si)}, which is terminal (a goal): "
@@ -298,13 +303,22 @@ def _validate(
     source,
     lines: np.ndarray | None = None,
     shown_step: np.ndarray | None = None,
+    source_lines: np.ndarray | None = None,
 ) -> None:
+    """Raise on the first bad pair; ``lines``/``shown_step`` locate a pair (by default its own
+    row), ``source_lines`` the row of the state it starts from (they differ for the grid format)."""
+    source_lines = lines if source_lines is None else source_lines
     steps = tr.step if shown_step is None else shown_step
     for err in (_structure_error(tr.episode, tr.step), _pair_error(mdp, tr)):
         if err is not None:
             i, msg = err
-            line = None if lines is None else int(lines[i])
-            raise InputError(f"{where(source, line)}episode {tr.episode[i]} step {steps[i]}: {msg}")
+            if msg.startswith("starts in "):  # the first cell is at fault, not the move out of it
+                line = None if source_lines is None else int(source_lines[i])
+                step = tr.step[i]
+            else:
+                line = None if lines is None else int(lines[i])
+                step = steps[i]
+            raise InputError(f"{where(source, line)}episode {tr.episode[i]} step {step}: {msg}")
 
 
 def validate(trajs: Trajectories, mdp: TabularMDP, source: str | Path | None = None) -> None:
@@ -553,5 +567,5 @@ def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
     action = _MOVE[dx[j + 1] + 1, dy[j + 1] + 1]
     trajs = Trajectories(ep[j], step[j], state[j], action)
     # A pair is reported at the row of the cell its action moves to.
-    _validate(trajs, mdp, path, lines[j + 1], step[j + 1])
+    _validate(trajs, mdp, path, lines[j + 1], step[j + 1], source_lines=lines[j])
     return trajs
