@@ -8,6 +8,7 @@ from random start states, and run discrete-set inference on them.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..demos import Trajectories, simulate
+from ..demos import DEFAULT_MAX_STEPS, Trajectories, simulate
 from ..hypotheses import (
     BETA_PRESETS,
     THETA_PRESETS,
@@ -47,6 +48,8 @@ class DemoRun:
     trajectories: Trajectories
     belief: DiscreteBelief
     metrics: dict[str, float]
+    #: Episode length cap of the simulation (actions); an episode that reaches it is cut.
+    max_steps: int = DEFAULT_MAX_STEPS
 
     @property
     def truth_index(self) -> int:
@@ -100,16 +103,25 @@ def run_demo(
     truth = hyp.index(theta_true, beta_true)
     assert truth is not None
     trajs = simulate(mdp, theta_true, beta_true, episodes, np.random.default_rng(sim_seq),
-                     log_policy=prior.log_policy[truth])
+                     log_policy=prior.log_policy[truth], max_steps=DEFAULT_MAX_STEPS)
     post = prior.update(trajs)
     metrics = {
         "expertise_distance": expertise_distance(beta_true, post.mean_beta),
         "cosine_similarity": cosine_similarity(theta_true, post.mean_theta),
         "policy_regret": policy_regret(mdp, theta_true, beta_true, post.mean_theta),
     }
-    return DemoRun(zone_map, mdp, hyp, theta_true, beta_true, trajs, post, metrics)
+    return DemoRun(zone_map, mdp, hyp, theta_true, beta_true, trajs, post, metrics,
+                   max_steps=DEFAULT_MAX_STEPS)
 
 
-def demo_outputs(out_dir: Path, seed: int) -> tuple[Path, Path]:
-    """Paths of the demo's figure and result JSON inside ``out_dir`` (one pair per seed)."""
-    return out_dir / f"demo-seed{seed}.png", out_dir / f"result-seed{seed}.json"
+def demo_outputs(out_dir: Path, seed: int, map_spec: str | None = None) -> tuple[Path, Path]:
+    """Paths of the demo's figure and result JSON inside ``out_dir``: one pair per seed and map.
+
+    The random map of a seed gives ``demo-seed{seed}.png``; ``--map`` (a bundled name or a file)
+    adds the map's name, ``demo-{name}-seed{seed}.png``, so demos on several maps share a folder.
+    """
+    tag = ""
+    if map_spec is not None:
+        stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(map_spec).stem).strip("._") or "map"
+        tag = f"{stem}-"
+    return out_dir / f"demo-{tag}seed{seed}.png", out_dir / f"result-{tag}seed{seed}.json"

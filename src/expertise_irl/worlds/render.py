@@ -317,6 +317,7 @@ def draw_theta_summary(
     theta_true=None,
     top: int = 8,
     ax_top: Axes | None = None,
+    absent: Sequence[bool] | None = None,
 ) -> tuple[Axes, Axes | None]:
     """Posterior mean E[θ] against θ* per feature, and the most probable θ vectors.
 
@@ -336,6 +337,10 @@ def draw_theta_summary(
         How many most probable θ vectors to list (0: none).
     ax_top : Axes, optional
         Axes for that list; by default a new axes is split off below ``ax``.
+    absent : sequence of bool, length K, optional
+        Features that never occur on the map (e.g. no road cell): their tick label says
+        "not on map" in grey and their bars are hatched, since no demonstration can
+        tell anything about them.
 
     Returns
     -------
@@ -360,7 +365,19 @@ def draw_theta_summary(
     ax.bar(x - shift, mean, width, color="#4c72b0", label=r"posterior mean E[$\theta$]", gid="mean")
     if true is not None:
         ax.bar(x + shift, true, width, color="#dd8452", label=r"true $\theta^*$", gid="true")
-    ax.set_xticks(x, names, fontsize=8)
+    gone = [False] * K if absent is None else [bool(a) for a in absent]
+    if len(gone) != K:
+        raise ValueError(f"absent must have {K} entries, got {len(gone)}")
+    ax.set_xticks(x, [f"{nm}\n(not on map)" if g else nm for nm, g in zip(names, gone, strict=True)],
+                  fontsize=8)
+    for xi, (tick, g) in enumerate(zip(ax.get_xticklabels(), gone, strict=True)):
+        if g:
+            tick.set_color("#8a8a8a")
+            tick.set_gid("absent-feature")
+            for bar in ax.patches:
+                if abs(bar.get_x() + bar.get_width() / 2 - xi) < 0.5:
+                    bar.set_hatch("////")
+                    bar.set_alpha(0.5)
     ax.set_ylabel("weight", fontsize=8.5)
     ax.set_ylim(0, max(1.0, float(np.max(mean)), float(np.max(true)) if true is not None else 0) * 1.05)
     ax.set_title(r"reward weights $\theta$", fontsize=9.5)
@@ -513,12 +530,238 @@ def render_summary_png(
     return _save(fig, path)
 
 
-def render_demo_png(path: str | Path, run, *, title: str | None = None) -> Path:
-    """The ``expertise-irl demo`` figure of a :class:`~expertise_irl.experiments.demo.DemoRun`."""
-    b = run.belief
+# ------------------------------------------------------------------ demo figure
+#: Colours of the few episodes the demo figure draws one by one (the others go to the heat map).
+EPISODE_COLORS = ("#e8590c", "#0b7285", "#ae3ec9")
+VISITS_COLOR = "#1b2a49"
+#: Episodes the demo figure draws one by one, and the moves of each drawn at most.
+DEMO_EPISODES = 3
+DEMO_MOVES = 60
+
+
+def episode_outcomes(trajs: Trajectories, mdp: TabularMDP, max_steps: int | None) -> list[str]:
+    """``"goal"`` (entered a terminal state), ``"cap"`` (stopped after ``max_steps`` actions
+    without reaching one) or ``"cut"`` (shorter, not in a goal: a recording that ends early)."""
+    out = []
+    for states, actions in trajs.episodes():
+        last = int(mdp.next_state[states[-1], actions[-1]])
+        if last >= 0 and mdp.terminal[last]:
+            out.append("goal")
+        elif max_steps is not None and len(states) >= max_steps:
+            out.append("cap")
+        else:
+            out.append("cut")
+    return out
+
+
+def visit_counts(zone_map: ZoneMap, paths_xy: Sequence[np.ndarray]) -> np.ndarray:
+    """``[height, width]`` number of times each cell is occupied, over every step of every path."""
+    counts = np.zeros((zone_map.height, zone_map.width))
+    for p in paths_xy:
+        p = np.asarray(p, dtype=np.int64)
+        np.add.at(counts, (p[:, 1], p[:, 0]), 1.0)
+    return counts
+
+
+def draw_visits(ax: Axes, zone_map: ZoneMap, paths_xy: Sequence[np.ndarray], *,
+                color: str = VISITS_COLOR, max_radius: float = 0.38, alpha: float = 0.42):
+    """Visitation heat map: a dot in each visited cell, its area proportional to the visits.
+
+    Dots (not a shade over the cell) keep the zone colours visible underneath. The most
+    visited cell gets radius ``max_radius`` (in cells). Returns the
+    :class:`~matplotlib.collections.PatchCollection` of circles (gid ``"visits"``), one per
+    visited cell, in the order of :func:`numpy.argwhere` over the counts.
+    """
+    from matplotlib.collections import PatchCollection
+
+    counts = visit_counts(zone_map, paths_xy)
+    top = counts.max() if counts.max() > 0 else 1.0
+    cells = np.argwhere(counts > 0)
+    circles = [Circle((x, y), max_radius * np.sqrt(counts[y, x] / top)) for y, x in cells]
+    coll = PatchCollection(circles, facecolor=color, edgecolor="none", alpha=alpha, zorder=2)
+    coll.set_gid("visits")
+    ax.add_collection(coll)
+    return coll
+
+
+def visits_legend_handles(top: float, color: str = VISITS_COLOR, max_ms: float = 10.0,
+                          alpha: float = 0.42) -> list:
+    """Legend dots for 1 visit, a middle value and ``top`` visits (area ∝ visits)."""
+    top = max(round(top), 1)
+    values = sorted({1, round(top ** 0.5), top})
+    return [Line2D([], [], ls="", marker="o", ms=max(max_ms * np.sqrt(v / top), 1.5), mfc=color,
+                   mec="none", alpha=alpha, label=f"{v} visit{'s' if v != 1 else ''}")
+            for v in values]
+
+
+def draw_episodes(
+    ax: Axes,
+    zone_map: ZoneMap,
+    paths_xy: Sequence[np.ndarray],
+    outcomes: Sequence[str],
+    *,
+    labels: Sequence[str] | None = None,
+    max_moves: int | None = DEMO_MOVES,
+    colors: Sequence[str] = EPISODE_COLORS,
+) -> list[Line2D]:
+    """Draw a few episodes distinctly: path, start (●) and end (★ goal, ✕ step cap, ■ cut).
+
+    A path longer than ``max_moves`` moves is drawn up to that move only, ending in an
+    arrowhead (it goes on), and its end marker still shows where the episode stopped.
+
+    Returns one legend handle per episode (gid ``"episode-i"`` on the drawn line).
+    """
+    handles = []
+    offsets = _jitter_offsets(max(len(paths_xy), 1), 0.12)
+    for i, (p, outcome) in enumerate(zip(paths_xy, outcomes, strict=True)):
+        p = np.asarray(p)
+        _check_path(zone_map, p, i)
+        c = colors[i % len(colors)]
+        moves = len(p) - 1
+        shown = p if max_moves is None or moves <= max_moves else p[: max_moves + 1]
+        xy = shown.astype(float) + offsets[i]
+        ax.plot(xy[:, 0], xy[:, 1], color="white", lw=3.6, alpha=0.8, zorder=4,
+                solid_joinstyle="round", solid_capstyle="round")
+        ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.9, zorder=5, solid_joinstyle="round",
+                        solid_capstyle="round", gid=f"episode-{i}")
+        if len(shown) < len(p) and len(xy) >= 2:
+            ax.annotate("", xy=xy[-1], xytext=xy[-2], zorder=6,
+                        arrowprops={"arrowstyle": "-|>,head_length=0.5,head_width=0.3", "color": c,
+                                    "lw": 1.9, "shrinkA": 0, "shrinkB": 0}, gid=f"episode-{i}-goes-on")
+        ax.plot(*(p[0] + offsets[i]), ls="", marker="o", ms=7.5, mfc=c, mec="white", mew=1.2,
+                zorder=7, gid=f"episode-{i}-start")
+        end = p[-1] + offsets[i]
+        marker = {"goal": "*", "cap": "X", "cut": "s"}[outcome]
+        ax.plot(*end, ls="", marker=marker, ms=11 if marker == "*" else 8.5, mfc=c, mec="white",
+                mew=1.0, zorder=7, gid=f"episode-{i}-end")
+        what = {"goal": f"reached the goal in {moves} moves",
+                "cap": f"stopped at the {moves}-step cap",
+                "cut": f"ended after {moves} moves"}[outcome]
+        if len(shown) < len(p):
+            what += f" (first {max_moves} drawn)"
+        label = labels[i] if labels is not None else f"episode {i}"
+        handles.append(Line2D([], [], color=c, lw=1.9, label=f"{label}: {what}"))
+    return handles
+
+
+def _check_path(zone_map: ZoneMap, p: np.ndarray, i: int) -> None:
+    """Raise :class:`InputError` unless ``p`` is a non-empty ``[T, 2]`` path of cells on the map."""
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] == 0:
+        raise InputError(f"path {i}: expected a non-empty [T, 2] array of cells, got {p.shape}")
+    off_grid = (p[:, 0] < 0) | (p[:, 0] >= zone_map.width) | (p[:, 1] < 0) | (p[:, 1] >= zone_map.height)
+    if off_grid.any():
+        t = int(np.argmax(off_grid))
+        raise InputError(f"path {i}, step {t}: cell {tuple(p[t].tolist())} is off the map")
+
+
+def episode_marker_handles(outcomes: Sequence[str]) -> list:
+    """Legend handles of the start / end markers used by :func:`draw_episodes`."""
+    grey = "#555555"
+    handles = [Line2D([], [], ls="", marker="o", ms=7, mfc=grey, mec="white", label="start")]
+    if "goal" in outcomes:
+        handles.append(Line2D([], [], ls="", marker="*", ms=10, mfc=grey, mec="white",
+                              label="end: reached the goal"))
+    if "cap" in outcomes:
+        handles.append(Line2D([], [], ls="", marker="X", ms=8, mfc=grey, mec="white",
+                              label="end: step cap"))
+    if "cut" in outcomes:
+        handles.append(Line2D([], [], ls="", marker="s", ms=7, mfc=grey, mec="white",
+                              label="end: recording stops"))
+    return handles
+
+
+def absent_features(mdp: TabularMDP) -> list[bool]:
+    """Per feature: True when no move of the MDP has a non-zero value (e.g. no road on the map)."""
+    f = np.asarray(mdp.features)
+    avail = np.asarray(mdp.next_state) >= 0
+    return [not bool(np.any(f[..., k][avail] != 0)) for k in range(f.shape[-1])]
+
+
+def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | None = None) -> str | None:
+    """One sentence on the episodes that hit the step cap and why (None when none did)."""
+    n_cap, n = sum(o == "cap" for o in outcomes), len(outcomes)
+    if n_cap == 0:
+        return None
+    who = f"β* = {beta_true:g}" if beta_true is not None else "a large β"
+    return (f"{n_cap} of {n} episodes hit the {max_steps}-step cap without reaching the goal. "
+            f"This is the model, not a bug: the paper's max-ent person is paid for randomness "
+            f"(β × entropy per step) and entering the goal ends the pay, so with {who} next to their "
+            f"weights, wandering is worth more than finishing.")
+
+
+def render_demo_png(path: str | Path, run, *, title: str | None = None,
+                    n_episodes: int = DEMO_EPISODES, max_moves: int | None = DEMO_MOVES) -> Path:
+    """The ``expertise-irl demo`` figure of a :class:`~expertise_irl.experiments.demo.DemoRun`.
+
+    Left: the map with a heat map of where every episode went, ``n_episodes`` episodes
+    drawn one by one (start and end marked), and a note when episodes hit the step cap.
+    Right: the marginal posterior of β, E[θ] against θ* (features that never occur on
+    the map are marked), and the most probable θ by marginal probability; the joint
+    posterior probability of the truth is stated.
+    """
+    zm, mdp, b = run.zone_map, run.mdp, run.belief
+    max_steps = getattr(run, "max_steps", None)
+    paths = paths_to_xy(run.trajectories, mdp)
+    outcomes = episode_outcomes(run.trajectories, mdp, max_steps)
+    ids = run.trajectories.episode_ids
+    shown = min(n_episodes, len(paths))
+    n = len(paths)
+    n_goal = sum(o == "goal" for o in outcomes)
+
+    mw, mh = _map_size(zm, 6.6, 5.6)
+    shown_ids = ", ".join(str(int(e)) for e in ids[:shown])
+    notes = [f"Episode{'s' if shown != 1 else ''} {shown_ids} drawn "
+             f"({shown} of {n}); every episode is in the visit dots."]
+    note = cap_note(outcomes, max_steps, run.beta_true)
+    if note:
+        notes.append(note)
+    import textwrap
+
+    width = max(60, int((mw + 0.4) * 14.5))
+    text = "\n".join(textwrap.fill(t, width) for t in notes)
+    heights = [mh, 0.78, 0.2 + 0.15 * shown, 0.1 + 0.135 * (text.count("\n") + 1)]
+    fig = _new_figure((mw + 5.8, max(sum(heights) + 0.7, 7.6)))
+    sf_left, sf_right = fig.subfigures(1, 2, width_ratios=[mw + 0.4, 5.4], wspace=0.02)
+    left = sf_left.add_gridspec(4, 1, height_ratios=heights)
+    ax_map = sf_left.add_subplot(left[0])
+    draw_map(ax_map, zm, legend=False)
+    draw_visits(ax_map, zm, paths)
+    handles = draw_episodes(ax_map, zm, paths[:shown], outcomes[:shown],
+                            labels=[f"episode {int(e)}" for e in ids[:shown]], max_moves=max_moves)
+    ax_map.set_title(f"{zm.name}: where {n} episode{'s' if n != 1 else ''} went "
+                     f"({n_goal} reached the goal)", fontsize=9.5)
+
+    ax_leg, ax_eps, ax_note = (sf_left.add_subplot(left[i]) for i in (1, 2, 3))
+    for a_ in (ax_leg, ax_eps, ax_note):
+        a_.axis("off")
+    top_visits = visit_counts(zm, paths).max()
+    legend_handles = (map_legend_handles(zm) + episode_marker_handles(outcomes[:shown])
+                      + visits_legend_handles(top_visits))
+    leg = ax_leg.legend(handles=legend_handles, loc="center", ncol=4, frameon=False,
+                        fontsize=7.3, handlelength=1.2, columnspacing=0.9, borderaxespad=0.0,
+                        title="grey dots: visits per cell over all episodes (area ∝ visits)",
+                        title_fontsize=7.3)
+    leg.set_gid("demo-legend")
+    ep_leg = ax_eps.legend(handles=handles, loc="center", frameon=False, fontsize=7.5,
+                           handlelength=1.6, borderaxespad=0.0)
+    ep_leg.set_gid("episode-legend")
+    ax_note.text(0.5, 0.5, text, transform=ax_note.transAxes, ha="center", va="center",
+                 fontsize=7.6, color="#333", gid="demo-note")
+
+    gs = sf_right.add_gridspec(3, 1, height_ratios=[1.0, 1.0, 1.1])
     betas, pb = b.marginal_beta()
     thetas, pt = b.marginal_theta()
-    return render_summary_png(
-        path, run.zone_map, paths_to_xy(run.trajectories, run.mdp), betas, pb, thetas, pt,
-        run.mdp.feature_names, theta_true=run.theta_true, beta_true=run.beta_true, title=title,
-    )
+    ax_b = draw_beta_marginal(sf_right.add_subplot(gs[0]), betas, pb, beta_true=run.beta_true)
+    ax_b.set_ylabel("marginal probability", fontsize=8.5)
+    ax_b.set_title(rf"marginal posterior of $\beta$ (summed over $\theta$),  E[$\beta$] = {b.mean_beta:.3g}",
+                   fontsize=9.5)
+    _, ax_top = draw_theta_summary(sf_right.add_subplot(gs[1]), thetas, pt, mdp.feature_names,
+                                      theta_true=run.theta_true, top=8,
+                                      ax_top=sf_right.add_subplot(gs[2]), absent=absent_features(mdp))
+    p_truth = float(b.probabilities[run.truth_index])
+    ax_top.set_title(rf"most probable $\theta$: marginal P($\theta$) (summed over $\beta$)"
+                     "\n" rf"joint P($\theta^*$, $\beta^*$) = {p_truth:.3f}  (★ = $\theta^*$)", fontsize=8.5)
+    ax_top.set_xlabel("marginal probability", fontsize=8.5)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return _save(fig, path)
