@@ -1,0 +1,126 @@
+"""``expertise-irl experiment run | status | list``: sweeps on a laptop or a Dask cluster."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ._app import _say, app, err, handles_errors
+
+experiment_app = typer.Typer(
+    help="Run a study's sweep (resumable, Parquet results), check on it, list the studies.",
+    no_args_is_help=True,
+)
+app.add_typer(experiment_app, name="experiment")
+
+
+def _duration(seconds: float | None) -> str:
+    if seconds is None:
+        return "unknown"
+    if seconds < 90:
+        return f"{seconds:.1f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+@experiment_app.command("run")
+@handles_errors
+def run_cmd(
+    study: Annotated[str, typer.Argument(help="Study name (see `expertise-irl experiment list`).")],
+    out: Annotated[Path, typer.Option("--out", help="Sweep directory (created, or resumed if it holds "
+                                      "the same study, scale and seed).")],
+    scale: Annotated[str, typer.Option(help="smoke | small | paper.")] = "smoke",
+    seed: Annotated[int, typer.Option(min=0, help="The sweep's seed (every instance's seed derives "
+                                      "from it and the instance's identity).")] = 0,
+    workers: Annotated[int | None, typer.Option(min=1, help="Local worker processes (default: one per "
+                                                "core).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address, e.g. tcp://HOST:8786; "
+                                                  "tasks then run on its workers.")] = None,
+    retry_failed: Annotated[bool, typer.Option("--retry-failed", help="Run again the tasks that "
+                                               "failed before.")] = False,
+) -> None:
+    """Run a sweep, or resume it: finished tasks are skipped, each task's rows land in one shard."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from ..experiments.engine import run
+    from ..experiments.studies import get_study
+
+    st = get_study(study)
+    st.config(scale)  # a bad scale is reported before any directory is made
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TextColumn("tasks, {task.fields[rows]} rows"), TimeRemainingColumn(), console=err,
+                   transient=False)
+    state = {"task": None, "rows": 0}
+
+    def on_start(total: int, todo: int) -> None:
+        state["task"] = bar.add_task(f"{study} ({scale})", total=total, completed=total - todo, rows=0)
+
+    def on_result(res, rows: int) -> None:
+        state["rows"] += rows
+        bar.update(state["task"], advance=1, rows=state["rows"])
+
+    where = f"Dask scheduler {scheduler}" if scheduler else f"{workers or os.cpu_count()} local worker(s)"
+    with bar:
+        summary = run(st, out, scale=scale, seed=seed, workers=workers, scheduler=scheduler,
+                      retry_failed=retry_failed, on_start=on_start, on_result=on_result)
+    _say(f"{study} ({scale}, seed {seed}) on {where}: {summary.ran} task(s) run, {summary.skipped} already "
+         f"done or skipped, {summary.failed} failed, {summary.rows} rows written to {out} in "
+         f"{_duration(summary.wall_time_s)}")
+    if summary.failed:
+        _say(f"{summary.failed} task(s) failed: see `expertise-irl experiment status {out}`; "
+             "re-run them with --retry-failed")
+        raise typer.Exit(1)
+
+
+@experiment_app.command("status")
+@handles_errors
+def status_cmd(
+    out: Annotated[Path, typer.Argument(help="Sweep directory.")],
+) -> None:
+    """Tasks done / total / failed, rows, time spent and an estimate of the time left."""
+    from ..experiments.engine import status
+
+    s = status(out)
+    cores = os.cpu_count() or 1
+    _say(f"{s.study} (scale {s.scale}, seed {s.seed}) in {out}")
+    _say(f"tasks: {s.done} done / {s.total} total, {s.failed} failed, {s.remaining} to do")
+    _say(f"rows: {s.rows}")
+    mean = f" (mean {_duration(s.mean_task_s)} per task)" if s.mean_task_s is not None else ""
+    _say(f"time spent: {_duration(s.time_spent_s)} of task time{mean}")
+    if s.remaining:
+        _say(f"estimated time left: {_duration(s.eta_s(1))} with 1 worker, "
+             f"{_duration(s.eta_s(cores))} with {cores}")
+    for key, message in s.failures:
+        _say(f"failed: {key}: {message}")
+
+
+@experiment_app.command("list")
+@handles_errors
+def list_cmd() -> None:
+    """Studies and their scales: tasks, instances, rows, solves, and an estimated time here."""
+    from rich.table import Table
+
+    from ..experiments.studies import studies
+
+    cores = os.cpu_count() or 1
+    table = Table(title=f"studies (estimated time with {cores} local workers on this machine)")
+    for name in ("study", "scale", "tasks", "instances", "rows", "set solves (grouped / ungrouped)",
+                 "estimated time"):
+        table.add_column(name, justify="left" if name in ("study", "scale") else "right")
+    for st in studies().values():
+        for scale, cfg in st.scales.items():
+            c = st.counts(cfg)
+            tasks = st.tasks(cfg)
+            est = sum(t.estimate_s for t in tasks) / min(cores, len(tasks))
+            table.add_row(st.name, scale, str(len(tasks)), str(c.get("instances", "")),
+                          str(c.get("rows", "")),
+                          f"{c.get('set_solves_grouped', '')} / {c.get('set_solves_ungrouped', '')}",
+                          _duration(est))
+        _say(f"{st.name}: {st.description}")
+    from ._app import out as console
+
+    console.print(table)

@@ -1,0 +1,473 @@
+"""The experiment engine: a study is data, a task is a pure function, engines only place tasks.
+
+A :class:`Study` names a config type (a frozen dataclass of plain values), its scales
+(``smoke``, ``small``, ``paper``), how a config expands into tasks, and the function that
+runs one task. Each task is a pure function of ``(config, seed, task key)`` that returns
+the rows of its instances; the randomness of an instance comes from
+``np.random.SeedSequence(entropy=seed, spawn_key=identity)`` (:func:`seed_sequence`), so the
+rows never depend on the order of tasks, the number of workers, the grouping or the engine.
+
+Engines: a local process pool (``spawn`` start method: JAX is not fork-safe; a pool whose
+worker dies is rebuilt and the unfinished tasks re-run) or a Dask ``distributed`` cluster
+when a scheduler address is given (tasks are submitted with ``retries``). Workers return
+rows; this process writes them (:mod:`.store`), so workers need no access to DIR.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import socket
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from .store import LAYOUT_VERSION, Store, config_hash, machine, to_toml, versions
+
+#: Environment variable read by the engine to inject faults (tests only); see :func:`_faults`.
+FAULTS_ENV = "EXPERTISE_IRL_FAULTS"
+#: Environment variable naming the directory of JAX's persistent compilation cache (or ``off``).
+JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
+#: Attempts the local pool gives a task whose worker process died before it gives up.
+LOCAL_ATTEMPTS = 3
+#: Dask ``retries`` for every task.
+DASK_RETRIES = 2
+SCALES = ("smoke", "small", "paper")
+
+
+def seed_sequence(seed: int, identity) -> np.random.SeedSequence:
+    """The seed of the thing named by ``identity`` (a tuple of non-negative ints) in sweep ``seed``."""
+    return np.random.SeedSequence(entropy=int(seed), spawn_key=tuple(int(i) for i in identity))
+
+
+@dataclass(frozen=True)
+class Column:
+    """One documented column: name, Arrow type (as pyarrow names it) and meaning."""
+
+    name: str
+    type: str
+    doc: str
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A task: its key (file name of its shard), its parameters and a cost estimate (seconds)."""
+
+    key: str
+    params: dict[str, Any]
+    estimate_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class Study:
+    """A named, versioned sweep definition.
+
+    Attributes:
+        name: the CLI name.
+        version: bump when a change alters the rows for the same config and seed.
+        description: one line for ``experiment list``.
+        config_type: a frozen dataclass; its fields are the study's factors.
+        scales: scale name -> config.
+        tasks: config -> task specs (each task's key unique within the study).
+        run_task: (config, seed, params) -> (columns dict of 1-D arrays, stats dict).
+        columns: the documented schema of the rows.
+        sort_by: columns that order the rows of :func:`load`.
+        counts: config -> dict of totals (instances, rows, solves grouped and not) for ``list``.
+    """
+
+    name: str
+    version: int
+    description: str
+    config_type: type
+    scales: dict[str, Any]
+    tasks: Callable[[Any], list[TaskSpec]]
+    run_task: Callable[[Any, int, dict[str, Any]], tuple[dict[str, np.ndarray], dict[str, Any]]]
+    columns: tuple[Column, ...]
+    sort_by: tuple[str, ...]
+    counts: Callable[[Any], dict[str, int]] = field(default=lambda cfg: {})
+
+    def config(self, scale: str):
+        if scale not in self.scales:
+            raise InputError(f"study {self.name!r} has no scale {scale!r} (scales: {', '.join(self.scales)})")
+        return self.scales[scale]
+
+    def arrow_schema(self):
+        import pyarrow as pa
+
+        return pa.schema([(c.name, _arrow_type(c.type)) for c in self.columns])
+
+
+def _arrow_type(name: str):
+    import pyarrow as pa
+
+    types = {"int32": pa.int32(), "int64": pa.int64(), "float64": pa.float64(), "string": pa.string(),
+             "bool": pa.bool_()}
+    return types[name]
+
+
+def config_dict(config) -> dict[str, Any]:
+    """A config as plain JSON/TOML values (tuples become lists)."""
+    return json.loads(json.dumps(dataclasses.asdict(config)))
+
+
+def config_from_dict(study: Study, values: dict[str, Any]):
+    kwargs = {}
+    for f in dataclasses.fields(study.config_type):
+        if f.name in values:
+            v = values[f.name]
+            kwargs[f.name] = tuple(v) if isinstance(v, list) else v
+    return study.config_type(**kwargs)
+
+
+# ------------------------------------------------------------------------ worker side
+def _faults() -> list[tuple[str, str]]:
+    """Faults to inject, from ``EXPERTISE_IRL_FAULTS`` (comma-separated ``kind:arg``).
+
+    Worker side: ``raise:KEY`` (the task raises), ``die:KEY:MARKER`` (the worker process exits
+    abruptly the first time, creating file MARKER). Driver side: ``kill-at-start``,
+    ``kill-after:N`` (SIGKILL after N shards were committed), ``kill-in-write:N`` (SIGKILL
+    halfway through writing shard N + 1).
+    """
+    spec = os.environ.get(FAULTS_ENV, "")
+    out = []
+    for item in filter(None, (s.strip() for s in spec.split(","))):
+        kind, _, arg = item.partition(":")
+        out.append((kind, arg))
+    return out
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+_JAX_CACHE_READY = False
+
+
+def _jax_cache() -> None:
+    """Let worker processes share compiled solver kernels through JAX's persistent cache.
+
+    Every worker would otherwise compile the same kernels again (seconds per map and batch
+    shape). ``EXPERTISE_IRL_JAX_CACHE`` names the directory (default
+    ``~/.cache/expertise-irl/jax``); ``off`` disables it.
+    """
+    global _JAX_CACHE_READY
+    if _JAX_CACHE_READY:
+        return
+    _JAX_CACHE_READY = True
+    where = os.environ.get(JAX_CACHE_ENV, "")
+    if where.lower() == "off":
+        return
+    if not where:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        where = os.path.join(base, "expertise-irl", "jax")
+    try:
+        os.makedirs(where, exist_ok=True)
+    except OSError:
+        return
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", where)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def _kill_self() -> None:
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+@dataclass
+class TaskResult:
+    key: str
+    columns: dict[str, np.ndarray] | None
+    stats: dict[str, Any]
+    error: dict[str, str] | None = None
+
+
+def execute_task(study_name: str, config: dict[str, Any], seed: int, key: str,
+                 params: dict[str, Any]) -> TaskResult:
+    """Run one task in this process (the function the engines ship to workers)."""
+    from .studies import get_study
+
+    for kind, arg in _faults():
+        if kind == "raise" and arg == key:
+            raise RuntimeError(f"injected failure in task {key}")
+        if kind == "die":
+            target, _, marker = arg.partition(":")
+            if target == key and not os.path.exists(marker):
+                Path(marker).touch()
+                os._exit(17)
+    _jax_cache()
+    study = get_study(study_name)
+    cfg = config_from_dict(study, config)
+    t0 = time.perf_counter()
+    columns, stats = study.run_task(cfg, seed, params)
+    stats = {**stats, "wall_time_s": time.perf_counter() - t0, "host": socket.gethostname(),
+             "pid": os.getpid()}
+    return TaskResult(key, columns, stats)
+
+
+def _error_info(exc: BaseException) -> dict[str, str]:
+    return {"error_type": type(exc).__name__, "message": str(exc),
+            "traceback": "".join(traceback.format_exception(exc))}
+
+
+# ---------------------------------------------------------------------------- engines
+def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[TaskResult]:
+    """Run tasks on a ``spawn`` process pool; rebuild the pool if a worker dies."""
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    attempts = dict.fromkeys((t.key for t in todo), 0)
+    pending = list(todo)
+    ctx = mp.get_context("spawn")
+    while pending:
+        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx) as pool:
+            futures = {}
+            for t in pending:
+                attempts[t.key] += 1
+                futures[pool.submit(execute_task, *job, t.key, t.params)] = t
+            pending = []
+            while futures:
+                done, _ = wait(futures, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    t = futures.pop(fut)
+                    try:
+                        yield fut.result()
+                    except BrokenProcessPool as exc:
+                        if attempts[t.key] < LOCAL_ATTEMPTS:
+                            pending.append(t)
+                        else:
+                            yield TaskResult(t.key, None, {}, _error_info(RuntimeError(
+                                f"worker process died {attempts[t.key]} times running this task ({exc})")))
+                    except Exception as exc:
+                        yield TaskResult(t.key, None, {}, _error_info(exc))
+
+
+def _dask_results(todo: list[TaskSpec], job: tuple, address: str) -> Iterator[TaskResult]:
+    """Run tasks on a Dask distributed cluster (``retries`` re-runs failed attempts)."""
+    from distributed import Client, as_completed
+
+    try:
+        client = Client(address, timeout="20s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"--scheduler {address}: cannot connect to a Dask scheduler ({exc})") from None
+    with client:
+        token = os.urandom(4).hex()
+        futures = {}
+        for t in todo:
+            fut = client.submit(execute_task, *job, t.key, t.params, key=f"{job[0]}-{t.key}-{token}",
+                                pure=False, retries=DASK_RETRIES)
+            futures[fut] = t
+        for fut in as_completed(futures):
+            t = futures[fut]
+            try:
+                yield fut.result()
+            except Exception as exc:
+                yield TaskResult(t.key, None, {}, _error_info(exc))
+            fut.release()
+
+
+# ----------------------------------------------------------------------------- driver
+@dataclass
+class RunSummary:
+    total: int
+    skipped: int
+    ran: int
+    failed: int
+    rows: int
+    wall_time_s: float
+
+
+def _manifest(study: Study, scale: str, seed: int, config, tasks: list[TaskSpec]) -> dict[str, Any]:
+    cfg = config_dict(config)
+    identity = {"study": study.name, "study_version": study.version, "scale": scale, "seed": int(seed),
+                "config": cfg}
+    return {**identity, "layout_version": LAYOUT_VERSION, "config_hash": config_hash(identity),
+            "task_keys": [t.key for t in tasks], "created": _now(),
+            "versions": versions(), "machine": machine()}
+
+
+def _columns_table(study: Study, columns: dict[str, np.ndarray]):
+    import pyarrow as pa
+
+    schema = study.arrow_schema()
+    missing = [n for n in schema.names if n not in columns]
+    extra = [n for n in columns if n not in schema.names]
+    if missing or extra:
+        raise RuntimeError(f"study {study.name} returned columns that break its schema: "
+                           f"missing {missing}, undocumented {extra}")
+    return pa.table({n: pa.array(np.asarray(columns[n]), type=schema.field(n).type) for n in schema.names},
+                    schema=schema)
+
+
+def _stats_table(key: str, stats: dict[str, Any]):
+    import pyarrow as pa
+
+    row = {"task": key, **stats}
+    return pa.table({k: [v] for k, v in row.items()})
+
+
+def _failure_table(key: str, params: dict[str, Any], error: dict[str, str]):
+    import pyarrow as pa
+
+    row = {"task": key, "params": json.dumps(params, sort_keys=True), **error,
+           "failed_at": _now()}
+    return pa.table({k: [v] for k, v in row.items()})
+
+
+def run(
+    study: Study,
+    out: Path,
+    *,
+    scale: str = "smoke",
+    seed: int = 0,
+    config=None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    retry_failed: bool = False,
+    on_start: Callable[[int, int], None] | None = None,
+    on_result: Callable[[TaskResult, int], None] | None = None,
+) -> RunSummary:
+    """Run (or resume) a sweep into ``out``.
+
+    ``config`` overrides the scale's config (the manifest then names the scale ``custom``).
+    ``on_start(total, todo)`` is called once the work is known, ``on_result(result, rows)`` after
+    each task is stored.
+    """
+    t_start = time.perf_counter()
+    if config is None:
+        config = study.config(scale)
+    else:
+        scale = "custom"
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    workers = workers or os.cpu_count() or 1
+    tasks = study.tasks(config)
+    store = Store(Path(out))
+    manifest = _manifest(study, scale, seed, config, tasks)
+    store.open(manifest, to_toml(manifest["config"], header=study.name))
+    faults = _faults()
+    if ("kill-at-start", "") in faults:
+        _kill_self()
+    done, failed = store.keys("rows"), store.keys("failures")
+    for key in done & failed:  # a retried task finished but its old failure was not removed yet
+        store.remove("failures", key)
+    failed -= done
+    todo = [t for t in tasks if t.key not in done and (retry_failed or t.key not in failed)]
+    todo.sort(key=lambda t: -t.estimate_s)  # longest first balances the workers
+    if on_start is not None:
+        on_start(len(tasks), len(todo))
+    kill_after = next((int(a) for k, a in faults if k == "kill-after"), None)
+    kill_in_write = next((int(a) for k, a in faults if k == "kill-in-write"), None)
+    by_key = {t.key: t for t in tasks}
+    job = (study.name, manifest["config"], int(seed))
+    results = _dask_results(todo, job, scheduler) if scheduler else _local_results(todo, job, workers)
+    ran = n_failed = rows = committed = 0
+    for res in results:
+        if res.error is not None:
+            store.write_table("failures", res.key, _failure_table(res.key, by_key[res.key].params, res.error))
+            n_failed += 1
+            if on_result is not None:
+                on_result(res, 0)
+            continue
+        table = _columns_table(study, res.columns)
+        store.write_table("timings", res.key, _stats_table(res.key, res.stats))
+        hook = _kill_self if kill_in_write is not None and committed == kill_in_write else None
+        store.write_table("rows", res.key, table, before_rename=hook)
+        store.remove("failures", res.key)
+        committed += 1
+        ran += 1
+        rows += table.num_rows
+        if on_result is not None:
+            on_result(res, table.num_rows)
+        if kill_after is not None and committed >= kill_after:
+            _kill_self()
+    return RunSummary(len(tasks), len(tasks) - len(todo), ran, n_failed, rows,
+                      time.perf_counter() - t_start)
+
+
+# ----------------------------------------------------------------------------- reading
+def load(out, table: str = "rows"):
+    """The sweep's ``rows`` (or ``timings`` / ``failures``) as one pandas DataFrame.
+
+    Rows are sorted by the study's identity columns, so two runs of the same sweep give equal
+    frames whatever the order their tasks finished in.
+    """
+    import pandas as pd
+
+    from .store import TABLES
+    from .studies import get_study
+
+    if table not in TABLES:
+        raise InputError(f"table must be one of {', '.join(TABLES)}, got {table!r}")
+    store = Store(Path(out))
+    manifest = store.read_manifest()
+    keys = set(manifest["task_keys"])
+    if table == "failures":
+        keys -= store.keys("rows")
+    arrow = store.read(table, keys)
+    if arrow is None:
+        if table == "rows":
+            return get_study(manifest["study"]).arrow_schema().empty_table().to_pandas()
+        return pd.DataFrame()
+    df = arrow.to_pandas()
+    if table == "rows":
+        study = get_study(manifest["study"])
+        df = df.sort_values(list(study.sort_by), kind="stable").reset_index(drop=True)
+    else:
+        df = df.sort_values("task", kind="stable").reset_index(drop=True)
+    return df
+
+
+@dataclass(frozen=True)
+class Status:
+    study: str
+    scale: str
+    seed: int
+    total: int
+    done: int
+    failed: int
+    rows: int
+    time_spent_s: float
+    mean_task_s: float | None
+    failures: list[tuple[str, str]]
+
+    @property
+    def remaining(self) -> int:
+        return self.total - self.done - self.failed
+
+    def eta_s(self, workers: int = 1) -> float | None:
+        """Estimated wall time left with ``workers`` workers, from the mean time of finished tasks."""
+        if self.mean_task_s is None:
+            return None
+        return self.remaining * self.mean_task_s / max(1, min(workers, max(self.remaining, 1)))
+
+
+def status(out) -> Status:
+    """Progress of the sweep in ``out``: tasks done / failed / total, rows, time spent."""
+    store = Store(Path(out))
+    manifest = store.read_manifest()
+    keys = set(manifest["task_keys"])
+    done = store.keys("rows") & keys
+    failed = (store.keys("failures") & keys) - done
+    spent, mean = 0.0, None
+    timings = store.read("timings", done)
+    if timings is not None and "wall_time_s" in timings.column_names:
+        wall = timings.column("wall_time_s").to_pylist()
+        spent = float(sum(wall))
+        mean = spent / len(wall) if wall else None
+    fails = []
+    if failed:
+        ft = store.read("failures", failed)
+        fails = list(zip(ft.column("task").to_pylist(), ft.column("message").to_pylist(), strict=True))
+    return Status(manifest["study"], manifest["scale"], int(manifest["seed"]), len(keys), len(done),
+                  len(failed), store.n_rows(done), spent, mean, fails)

@@ -1,0 +1,211 @@
+"""On-disk layout of a sweep: a manifest, one Parquet shard per finished task, failures, timings.
+
+```
+DIR/manifest.json       study, version, scale, seed, config, task keys, versions, machine
+DIR/config.toml         the same config, for people
+DIR/rows/<task>.parquet     the task's rows (deterministic; the study's documented schema)
+DIR/timings/<task>.parquet  wall times, worker and host of the task (differ run to run)
+DIR/failures/<task>.parquet one row: the task's key, parameters, error type, message, traceback
+DIR/tmp/                    files being written; renamed into place when complete
+```
+
+A row shard is the commit point of its task: it is written to ``DIR/tmp``, flushed to
+disk, then renamed into ``DIR/rows`` (an atomic step) and the directory is synced. Nothing
+is recorded anywhere else about a finished task, so a run killed at any moment leaves every
+task either finished (its shard is there, complete) or not started; the next run redoes
+the latter. The timing file is written before the shard, so a finished task always has one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import platform
+import socket
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+
+MANIFEST = "manifest.json"
+LAYOUT_VERSION = 1
+TABLES = ("rows", "timings", "failures")
+_VERSIONED = ("expertise-irl", "numpy", "scipy", "jax", "jaxlib", "pandas", "pyarrow", "dask", "distributed")
+
+
+def config_hash(identity: dict[str, Any]) -> str:
+    """SHA-256 of the canonical JSON of what defines a sweep (study, version, scale, seed, config)."""
+    text = json.dumps(identity, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in _VERSIONED:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def machine() -> dict[str, Any]:
+    return {"host": socket.gethostname(), "platform": platform.platform(),
+            "processor": platform.machine(), "cpus": os.cpu_count()}
+
+
+def _fsync_dir(path: Path) -> None:
+    with contextlib.suppress(OSError):  # not every file system lets a directory be opened
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def write_atomic(path: Path, data: bytes, tmp_dir: Path) -> None:
+    """Write ``data`` to ``path`` so that readers see either nothing or the whole file."""
+    tmp = tmp_dir / f"{path.name}.{os.getpid()}.{time.monotonic_ns()}.part"
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int | float):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def to_toml(table: dict[str, Any], header: str | None = None) -> str:
+    """A flat TOML table (scalars and lists), readable back with :mod:`tomllib`."""
+    lines = [f"[{header}]"] if header else []
+    lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True)
+class Store:
+    """One sweep directory."""
+
+    root: Path
+
+    def table_dir(self, table: str) -> Path:
+        return self.root / table
+
+    @property
+    def tmp(self) -> Path:
+        return self.root / "tmp"
+
+    def shard(self, table: str, key: str) -> Path:
+        return self.table_dir(table) / f"{key}.parquet"
+
+    # ------------------------------------------------------------------ manifest
+    def read_manifest(self) -> dict[str, Any]:
+        path = self.root / MANIFEST
+        if not path.is_file():
+            raise InputError(f"{self.root}: not an experiment directory (no {MANIFEST})")
+        try:
+            return json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise InputError(f"{path}: not a valid manifest (unreadable JSON)") from None
+
+    def open(self, manifest: dict[str, Any], config_toml: str) -> dict[str, Any]:
+        """Create the directory for this sweep, or check that it already holds the same sweep.
+
+        Raises InputError if DIR is a file, a non-empty directory of something else, or a
+        sweep with another study, version, scale, seed or config.
+        """
+        root = self.root
+        if root.exists() and not root.is_dir():
+            raise InputError(f"{root}: exists and is not a directory")
+        if (root / MANIFEST).exists():
+            old = self.read_manifest()
+            if old.get("config_hash") != manifest["config_hash"]:
+                raise InputError(
+                    f"{root}: holds study {old.get('study')!r} (scale {old.get('scale')}, seed "
+                    f"{old.get('seed')}, config {str(old.get('config_hash'))[:12]}), not study "
+                    f"{manifest['study']!r} (scale {manifest['scale']}, seed {manifest['seed']}, config "
+                    f"{manifest['config_hash'][:12]}); refusing to mix results, use another --out"
+                )
+            self._make_dirs()
+            self.clean_tmp()
+            return old
+        if root.exists() and any(root.iterdir()):
+            raise InputError(f"{root}: directory is not empty and holds no experiment; use another --out")
+        self._make_dirs()
+        (root / "config.toml").write_text(config_toml)
+        write_atomic(root / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode(), self.tmp)
+        return manifest
+
+    def _make_dirs(self) -> None:
+        for d in (*TABLES, "tmp"):
+            (self.root / d).mkdir(parents=True, exist_ok=True)
+
+    def clean_tmp(self) -> None:
+        """Remove files left in ``tmp/`` by a run that was killed while writing."""
+        for p in self.tmp.glob("*.part"):
+            with contextlib.suppress(OSError):
+                p.unlink()
+
+    # -------------------------------------------------------------------- tables
+    def keys(self, table: str) -> set[str]:
+        d = self.table_dir(table)
+        return {p.stem for p in d.glob("*.parquet")} if d.is_dir() else set()
+
+    def write_table(self, table: str, key: str, arrow_table, *, before_rename=None) -> None:
+        """Write one shard atomically (``before_rename`` is a hook used to test interruptions)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        sink = pa.BufferOutputStream()
+        pq.write_table(arrow_table, sink, compression="zstd")
+        data = sink.getvalue().to_pybytes()
+        path = self.shard(table, key)
+        tmp = self.tmp / f"{table}-{key}.{os.getpid()}.part"
+        with open(tmp, "wb") as fh:
+            if before_rename is not None:
+                fh.write(data[: len(data) // 2])
+                fh.flush()
+                before_rename()
+            fh.write(data[len(data) // 2:] if before_rename is not None else data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        _fsync_dir(path.parent)
+
+    def remove(self, table: str, key: str) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            self.shard(table, key).unlink()
+            _fsync_dir(self.table_dir(table))
+
+    def read(self, table: str, keys: Iterable[str] | None = None):
+        """Concatenate the shards of ``table`` (all, or those of ``keys``) into one Arrow table."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        names = sorted(self.keys(table) if keys is None else set(keys) & self.keys(table))
+        tables = [pq.read_table(self.shard(table, k)) for k in names]
+        if not tables:
+            return None
+        return pa.concat_tables(tables, promote_options="default")
+
+    def n_rows(self, keys: Iterable[str]) -> int:
+        import pyarrow.parquet as pq
+
+        return sum(pq.read_metadata(self.shard("rows", k)).num_rows for k in keys)

@@ -1,0 +1,19 @@
+"""The registry of studies (``expertise-irl experiment list``)."""
+
+from __future__ import annotations
+
+from ...errors import InputError
+
+
+def studies() -> dict:
+    """Study name -> :class:`~expertise_irl.experiments.engine.Study`."""
+    from .conditions import STUDY as conditions
+
+    return {s.name: s for s in (conditions,)}
+
+
+def get_study(name: str):
+    known = studies()
+    if name not in known:
+        raise InputError(f"unknown study {name!r} (studies: {', '.join(sorted(known))})")
+    return known[name]

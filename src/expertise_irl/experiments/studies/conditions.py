@@ -1,0 +1,370 @@
+"""The ``conditions`` study (paper Sec. VI-A): Full set, Fixed θ, Fixed β and out-of-set truths.
+
+Protocol. For each random environment e (Sec. V-A generator), run r and k, Θ_k is k
+vectors drawn from the ``paper-sim`` grid and Ψ_k = Θ_k × B with the paper's six β. For each
+expertise group g one simulated person has an in-set truth (θ*, β*) drawn from Ψ_k with β* in
+g, and one has an out-of-set truth (θ*_out ∈ Θ \\ Θ_k, β*_out ~ U(0.01, 10)). Each person
+demonstrates episodes from uniformly random start states to the map's one goal: ``episodes``
+of them (20), or ``low_episodes`` (40, the Fig. 3 extension) for in-set low-expertise truths.
+On the same episodes the in-set person is scored under three conditions, the out-of-set
+person under the Full set only:
+
+- ``full``: Ψ_k;
+- ``fixed_theta``: Θ = {θ} for a θ ∈ Θ_k other than θ*, all of B;
+- ``fixed_beta``: B = {β} for a β of another expertise group than β*, all of Θ_k.
+
+After every episode count n = 1..N (one pass: the belief is updated episode by episode) a row
+records β̂ = E[β], θ̂ = E[θ] and the three metrics of Sec. V-E; the regret of every condition
+uses the true β* (Sec. VI-C).
+
+Identities and seeds. A map is seeded by ``(e,)``, Θ_k by ``(e, r, k)``, a person by
+``(e, r, k, g, t)`` with g the index of the group in (high, medium, low) and t = 0 in-set,
+1 out-of-set. A person's stream is split into (truth, condition choices, episodes); episode j
+has its own child seed, so the first n episodes are the same whatever N is. A person's
+episodes come from a solve of their own (θ*, β*) alone, so they do not depend on which
+hypothesis set a task solves.
+
+Grouping. A task is one (e, r, k): it solves Ψ_k once and scores all its people and all
+their conditions from row subsets of that one solve (the Fixed θ and Fixed β sets are subsets
+of Ψ_k). Ungrouped, each (person, condition) would solve its own set.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ...errors import InputError
+from ..engine import Column, Study, TaskSpec, seed_sequence
+
+GROUPS = ("high", "medium", "low")
+TRUTHS = ("in_set", "out_of_set")
+CONDITIONS = ("full", "fixed_theta", "fixed_beta")
+FEATURES = ("length", "road", "avoid", "slow", "traffic")
+
+
+@dataclass(frozen=True)
+class ConditionsConfig:
+    """Factors of the study (paper values as defaults)."""
+
+    environments: int = 5
+    runs: int = 5
+    ks: tuple[int, ...] = (5, 10, 15, 20)
+    groups: tuple[str, ...] = GROUPS
+    out_of_set: bool = True
+    episodes: int = 20
+    low_episodes: int = 40
+    map_min_size: int = 10
+    map_max_size: int = 30
+    max_steps: int = 500
+    thetas: str = "paper-sim"
+    betas: str = "paper-sim"
+    out_of_set_beta_low: float = 0.01
+    out_of_set_beta_high: float = 10.0
+
+    def __post_init__(self) -> None:
+        bad = [g for g in self.groups if g not in GROUPS]
+        if bad:
+            raise InputError(f"unknown expertise group {bad[0]!r} (groups: {', '.join(GROUPS)})")
+        if self.environments < 1 or self.runs < 1 or not self.ks or min(self.ks) < 2:
+            raise InputError("need at least one environment and run, and every k >= 2")
+        if self.episodes < 1 or self.low_episodes < 1:
+            raise InputError("episodes must be at least 1")
+
+    def n_episodes(self, group: str, truth: str) -> int:
+        return self.low_episodes if (group == "low" and truth == "in_set") else self.episodes
+
+    def people(self) -> list[tuple[str, str]]:
+        truths = TRUTHS if self.out_of_set else TRUTHS[:1]
+        return [(g, t) for g in self.groups for t in truths]
+
+
+SCALES = {
+    "smoke": ConditionsConfig(environments=2, runs=1, ks=(3, 5), episodes=3, low_episodes=5,
+                              map_min_size=5, map_max_size=7, max_steps=60),
+    "small": ConditionsConfig(environments=3, runs=2, ks=(5, 10, 15, 20), map_min_size=10, map_max_size=20),
+    "paper": ConditionsConfig(),
+}
+
+
+# ------------------------------------------------------------------------- instances
+@lru_cache(maxsize=8)
+def _map(seed: int, e: int, lo: int, hi: int):
+    from ...worlds.zones import generate_map
+
+    zm = generate_map(np.random.default_rng(seed_sequence(seed, (e,))), min_size=lo, max_size=hi,
+                      name=f"environment {e} (seed {seed})")
+    return zm, zm.to_mdp()
+
+
+@lru_cache(maxsize=4)
+def _grid(preset: str, n_features: int) -> np.ndarray:
+    from ...hypotheses import THETA_PRESETS, theta_grid
+
+    return theta_grid(THETA_PRESETS[preset], n_features)
+
+
+def solve_padded(mdp, theta, beta):
+    """:func:`~expertise_irl.planning.solve` with the batch padded to a power of two (at least 8).
+
+    The solver compiles once per batch shape; padding (repeating the last hypothesis) keeps
+    the shapes of a sweep to a handful, and a given input always gets the same padding, so
+    the result is a function of the input alone.
+    """
+    from ...planning import solve
+
+    theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
+    beta = np.atleast_1d(np.asarray(beta, dtype=np.float64))
+    H = len(theta)
+    size = max(8, 1 << (H - 1).bit_length())
+    pad = np.r_[np.arange(H), np.full(size - H, H - 1)]
+    sol = solve(mdp, theta[pad], beta[pad])
+    return sol.value[:H], sol.log_policy[:H]
+
+
+def environment(cfg: ConditionsConfig, seed: int, e: int):
+    """``(zone_map, mdp)`` of environment ``e``."""
+    return _map(int(seed), int(e), cfg.map_min_size, cfg.map_max_size)
+
+
+def theta_k(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int) -> np.ndarray:
+    """Θ_k of (environment, run, k): k distinct rows of the Θ grid."""
+    from ...hypotheses import sample_thetas
+
+    _, mdp = environment(cfg, seed, e)
+    return sample_thetas(_grid(cfg.thetas, mdp.n_features), k,
+                         np.random.default_rng(seed_sequence(seed, (e, r, k))))
+
+
+@dataclass(frozen=True)
+class Person:
+    """One simulated person: truth, the condition sets' choices, and their episodes."""
+
+    identity: tuple[int, int, int, int, int]
+    group: str
+    truth: str
+    theta: np.ndarray
+    beta: float
+    fixed_theta: np.ndarray | None
+    fixed_beta: float | None
+    value: np.ndarray  # [S] soft value of the truth (for regret)
+    trajectories: object  # demos.Trajectories
+
+
+def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str, truth: str) -> Person:
+    """Rebuild the person of identity ``(e, r, k, group, truth)`` (bit for bit, in any study)."""
+    from ...demos import Trajectories, simulate
+    from ...hypotheses import BETA_PRESETS
+    from ...inference.conditions import (
+        fixed_beta_set,
+        fixed_theta_set,
+        full_set,
+        out_of_set_truth,
+        sample_in_set_truth,
+    )
+
+    _, mdp = environment(cfg, seed, e)
+    thetas = theta_k(cfg, seed, e, r, k)
+    betas = BETA_PRESETS[cfg.betas]
+    ident = (e, r, k, GROUPS.index(group), TRUTHS.index(truth))
+    truth_ss, cond_ss, sim_ss = seed_sequence(seed, ident).spawn(3)
+    rng_truth = np.random.default_rng(truth_ss)
+    ft = fb = None
+    if truth == "in_set":
+        th, b = sample_in_set_truth(full_set(thetas, betas), group, rng_truth)
+        rng_cond = np.random.default_rng(cond_ss)
+        ft = fixed_theta_set(thetas, betas, th, rng_cond).thetas[0]
+        fb = float(fixed_beta_set(thetas, betas, b, rng_cond).betas[0])
+    else:
+        th, b = out_of_set_truth(_grid(cfg.thetas, mdp.n_features), thetas, rng_truth,
+                                 beta_range=(cfg.out_of_set_beta_low, cfg.out_of_set_beta_high))
+    value, log_policy = solve_padded(mdp, th, b)
+    parts = []
+    for j, ss in enumerate(sim_ss.spawn(cfg.n_episodes(group, truth))):
+        tr = simulate(mdp, None, None, 1, np.random.default_rng(ss), max_steps=cfg.max_steps,
+                      log_policy=log_policy[0])
+        parts.append((np.full(len(tr), j), tr.step, tr.state, tr.action))
+    ep, step, state, action = (np.concatenate(c) for c in zip(*parts, strict=True))
+    return Person(ident, group, truth, th, b, ft, fb, value[0], Trajectories(ep, step, state, action))
+
+
+# ------------------------------------------------------------------------------ tasks
+def tasks(cfg: ConditionsConfig) -> list[TaskSpec]:
+    out = []
+    n_people = len(cfg.people())
+    for e in range(cfg.environments):
+        for r in range(cfg.runs):
+            for k in cfg.ks:
+                est = 1.0 + n_people * 0.6 + 0.004 * k * cfg.episodes * n_people
+                out.append(TaskSpec(f"e{e:03d}-r{r:03d}-k{k:03d}", {"environment": e, "run": r, "k": k}, est))
+    return out
+
+
+def counts(cfg: ConditionsConfig) -> dict[str, int]:
+    """Instances, rows and solves of hypothesis sets, with and without grouping by (e, r, k)."""
+    n_b = 6
+    people = cfg.people()
+    n_tasks = cfg.environments * cfg.runs * len(cfg.ks)
+    per_k_ungrouped = sum(len(CONDITIONS) if t == "in_set" else 1 for _, t in people)
+    rows = sum((len(CONDITIONS) if t == "in_set" else 1) * cfg.n_episodes(g, t) for g, t in people)
+    hyp_grouped = sum(n_b * k for k in cfg.ks)
+    hyp_ungrouped = sum((n_b * k + n_b + k) if t == "in_set" else n_b * k for k in cfg.ks for _, t in people)
+    per_er = cfg.environments * cfg.runs
+    return {"tasks": n_tasks, "instances": n_tasks * len(people), "rows": per_er * len(cfg.ks) * rows,
+            "set_solves_grouped": n_tasks, "set_solves_ungrouped": n_tasks * per_k_ungrouped,
+            "hypotheses_grouped": per_er * hyp_grouped, "hypotheses_ungrouped": per_er * hyp_ungrouped}
+
+
+def _subset_rows(hyp, sub) -> np.ndarray:
+    rows = [hyp.index(t, b) for t, b in zip(sub.theta, sub.beta, strict=True)]
+    assert all(i is not None for i in rows)
+    return np.asarray(rows, dtype=np.int64)
+
+
+def run_task(cfg: ConditionsConfig, seed: int, params: dict) -> tuple[dict[str, np.ndarray], dict]:
+    """Every person of one (environment, run, k), scored from one solve of Ψ_k."""
+    from ...hypotheses import BETA_PRESETS
+    from ...inference.conditions import full_set
+
+    e, r, k = int(params["environment"]), int(params["run"]), int(params["k"])
+    _, mdp = environment(cfg, seed, e)
+    hyp = full_set(theta_k(cfg, seed, e, r, k), BETA_PRESETS[cfg.betas])
+    t0 = time.perf_counter()
+    _, log_policy = solve_padded(mdp, hyp.theta, hyp.beta)
+    solve_time = time.perf_counter() - t0
+    cols: dict[str, list] = {}
+    for g, t in cfg.people():
+        p = person(cfg, seed, e, r, k, g, t)
+        for name, values in score_person(cfg, seed, mdp, hyp, log_policy, p).items():
+            cols.setdefault(name, []).append(values)
+    columns = {n: np.concatenate(v) for n, v in cols.items()}
+    return columns, {"set_solve_time_s": solve_time, "set_solves": 1, "hypotheses_solved": len(hyp)}
+
+
+def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.ndarray]:
+    """The rows of one person: every condition × episode count 1..N."""
+    from ...hypotheses import HypothesisSet, expertise_group
+    from ...inference.belief import DiscreteBelief
+    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
+
+    trajs = p.trajectories
+    eps = trajs.episodes()
+    N = len(eps)
+    lengths = np.array([len(s) for s, _ in eps])
+    ends = np.array([mdp.next_state[s[-1], a[-1]] for s, a in eps])
+    capped = (lengths >= cfg.max_steps) & ~mdp.terminal[ends]
+    conds = CONDITIONS if p.truth == "in_set" else CONDITIONS[:1]
+    g_true = expertise_group(p.beta)
+    est: dict[str, list] = {n: [] for n in ("beta_hat", "theta_hat", "p_group_true", "truth_probability",
+                                            "entropy", "n_hypotheses")}
+    for c in conds:
+        if c == "full":
+            sub = hyp
+        elif c == "fixed_theta":
+            sub = HypothesisSet(p.fixed_theta[None], hyp.betas)
+        else:
+            sub = HypothesisSet(hyp.thetas, [p.fixed_beta])
+        b = DiscreteBelief.from_log_policy(sub, log_policy[_subset_rows(hyp, sub)])
+        truth_idx = sub.index(p.theta, p.beta) if p.truth == "in_set" else None
+        for n, (s, a) in enumerate(eps):
+            b = b.update_trajectory(s, a, episode=n)
+            est["beta_hat"].append(b.mean_beta)
+            est["theta_hat"].append(b.mean_theta)
+            est["p_group_true"].append(b.group_probabilities()[g_true])
+            est["truth_probability"].append(np.nan if truth_idx is None else b.probabilities[truth_idx])
+            est["entropy"].append(b.entropy)
+            est["n_hypotheses"].append(len(sub))
+    theta_hat = np.array(est["theta_hat"])
+    uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
+    v_hat, _ = solve_padded(mdp, uniq, np.full(len(uniq), p.beta))
+    regret = [regret_from_values(p.value, v_hat[i], mdp.terminal) for i in inv.ravel()]
+    m = len(conds) * N
+    e, r, k, _, _ = p.identity
+    zm, _ = environment(cfg, seed, e)
+    col = {
+        "seed": np.full(m, seed), "environment": np.full(m, e), "run": np.full(m, r), "k": np.full(m, k),
+        "group": np.full(m, p.group, dtype=object), "truth": np.full(m, p.truth, dtype=object),
+        "condition": np.repeat(np.array(conds, dtype=object), N),
+        "method": np.full(m, "discrete", dtype=object),
+        "episodes": np.tile(np.arange(1, N + 1), len(conds)),
+        "n_pairs": np.tile(np.cumsum(lengths), len(conds)),
+        "n_capped": np.tile(np.cumsum(capped), len(conds)),
+        "map_width": np.full(m, zm.width), "map_height": np.full(m, zm.height),
+        "n_states": np.full(m, mdp.n_states), "n_hypotheses": np.array(est["n_hypotheses"]),
+        "beta_true": np.full(m, p.beta), "group_true": np.full(m, g_true, dtype=object),
+    }
+    for i, f in enumerate(FEATURES):
+        col[f"theta_true_{f}"] = np.full(m, p.theta[i])
+    fb = p.fixed_beta if p.fixed_beta is not None else np.nan
+    col["fixed_beta"] = np.where(col["condition"] == "fixed_beta", fb, np.nan).astype(np.float64)
+    for i, f in enumerate(FEATURES):
+        v = p.fixed_theta[i] if p.fixed_theta is not None else np.nan
+        col[f"fixed_theta_{f}"] = np.where(col["condition"] == "fixed_theta", v, np.nan)
+    col["beta_hat"] = np.array(est["beta_hat"])
+    col["group_hat"] = np.array([expertise_group(x) for x in est["beta_hat"]], dtype=object)
+    for i, f in enumerate(FEATURES):
+        col[f"theta_hat_{f}"] = theta_hat[:, i]
+    col["p_group_true"] = np.array(est["p_group_true"])
+    col["truth_probability"] = np.array(est["truth_probability"])
+    col["entropy"] = np.array(est["entropy"])
+    col["expertise_distance"] = np.array([expertise_distance(p.beta, x) for x in est["beta_hat"]])
+    col["cosine_similarity"] = np.array([cosine_similarity(p.theta, t) for t in theta_hat])
+    col["policy_regret"] = np.array(regret)
+    return col
+
+
+# ----------------------------------------------------------------------------- schema
+_ID = [
+    Column("seed", "int64", "the sweep's seed (`--seed`)"),
+    Column("environment", "int32", "environment index e (its map is seeded by `(e,)`)"),
+    Column("run", "int32", "run index r (Θ_k is seeded by `(e, r, k)`)"),
+    Column("k", "int32", "number of preference vectors in Θ_k"),
+    Column("group", "string", "the person's expertise-group slot: `high`, `medium`, `low` (for an "
+           "out-of-set person only an index; see `group_true`)"),
+    Column("truth", "string", "`in_set` (θ*, β*) ∈ Ψ_k, or `out_of_set` (θ* ∉ Θ_k, β* ~ U(0.01, 10))"),
+    Column("condition", "string", "`full` (Ψ_k), `fixed_theta` (Θ = {θ}, θ ≠ θ*), `fixed_beta` "
+           "(B = {β}, β in another group than β*)"),
+    Column("method", "string", "inference method (`discrete`: the discrete-set belief)"),
+    Column("episodes", "int32", "episodes seen, n = 1..N"),
+]
+_CONTEXT = [
+    Column("n_pairs", "int64", "actions seen in the first n episodes"),
+    Column("n_capped", "int32", "episodes among the first n that hit `max_steps` without reaching the goal"),
+    Column("map_width", "int32", "map width (cells)"),
+    Column("map_height", "int32", "map height (cells)"),
+    Column("n_states", "int32", "states of the MDP"),
+    Column("n_hypotheses", "int32", "hypotheses of the condition's set"),
+    Column("beta_true", "float64", "β* of the person"),
+    Column("group_true", "string", "expertise group of β*"),
+    *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm)") for f in FEATURES],
+    Column("fixed_beta", "float64", "the β of the Fixed β set (NaN in other conditions)"),
+    *[Column(f"fixed_theta_{f}", "float64", f"component `{f}` of the Fixed θ set's θ (NaN elsewhere)")
+      for f in FEATURES],
+]
+_ESTIMATES = [
+    Column("beta_hat", "float64", "β̂ = E[β] after n episodes"),
+    Column("group_hat", "string", "expertise group of β̂"),
+    *[Column(f"theta_hat_{f}", "float64", f"θ̂ = E[θ] component `{f}`") for f in FEATURES],
+    Column("p_group_true", "float64", "posterior mass on β*'s expertise group"),
+    Column("truth_probability", "float64", "posterior probability of (θ*, β*) (NaN if not in the set)"),
+    Column("entropy", "float64", "posterior entropy (nats)"),
+    Column("expertise_distance", "float64", "|β* − β̂|"),
+    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
+    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
+]
+
+STUDY = Study(
+    name="conditions",
+    version=1,
+    description="Sec. VI-A: Full set vs Fixed θ vs Fixed β, in- and out-of-set truths, metrics per episode",
+    config_type=ConditionsConfig,
+    scales=SCALES,
+    tasks=tasks,
+    run_task=run_task,
+    columns=(*_ID, *_CONTEXT, *_ESTIMATES),
+    sort_by=("environment", "run", "k", "group", "truth", "condition", "method", "episodes"),
+    counts=counts,
+)
