@@ -657,16 +657,16 @@ def _check_path(zone_map: ZoneMap, p: np.ndarray, i: int) -> None:
 def episode_marker_handles(outcomes: Sequence[str]) -> list:
     """Legend handles of the start / end markers used by :func:`draw_episodes`."""
     grey = "#555555"
-    handles = [Line2D([], [], ls="", marker="o", ms=7, mfc=grey, mec="white", label="start")]
+    handles = [Line2D([], [], ls="", marker="o", ms=7, mfc=grey, mec="white", label="episode start")]
     if "goal" in outcomes:
         handles.append(Line2D([], [], ls="", marker="*", ms=10, mfc=grey, mec="white",
-                              label="end: reached the goal"))
+                              label="episode end: goal"))
     if "cap" in outcomes:
         handles.append(Line2D([], [], ls="", marker="X", ms=8, mfc=grey, mec="white",
-                              label="end: step cap"))
+                              label="episode end: step cap"))
     if "cut" in outcomes:
         handles.append(Line2D([], [], ls="", marker="s", ms=7, mfc=grey, mec="white",
-                              label="end: recording stops"))
+                              label="episode end: data stop"))
     return handles
 
 
@@ -677,16 +677,46 @@ def absent_features(mdp: TabularMDP) -> list[bool]:
     return [not bool(np.any(f[..., k][avail] != 0)) for k in range(f.shape[-1])]
 
 
-def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | None = None) -> str | None:
-    """One sentence on the episodes that hit the step cap and why (None when none did)."""
+def best_move(mdp: TabularMDP, theta) -> tuple[float, str | None]:
+    """Largest reward θ·φ of a move that does not enter a goal, and the feature that pays most in it."""
+    ns = np.asarray(mdp.next_state)
+    ok = ns >= 0
+    ok &= ~np.asarray(mdp.terminal)[np.where(ok, ns, 0)]
+    if not ok.any():
+        return -np.inf, None
+    contrib = np.asarray(mdp.features)[ok] * np.asarray(theta, dtype=float)  # [moves, K]
+    r = contrib.sum(axis=1)
+    i = int(np.argmax(r))
+    return float(r[i]), str(mdp.feature_names[int(np.argmax(contrib[i]))])
+
+
+def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | None = None,
+             move: tuple[float, str | None] | None = None) -> str | None:
+    """Sentences on the episodes that hit the step cap and why (None when none did).
+
+    Two causes, both part of the model: moves that pay (``move`` = (largest reward of a move
+    that does not enter the goal, the feature behind it)), and the entropy bonus of
+    the max-ent person, which grows with β.
+    """
+    from ..hypotheses import GROUP_BOUNDARIES
+
     n_cap, n = sum(o == "cap" for o in outcomes), len(outcomes)
     if n_cap == 0:
         return None
-    who = f"β* = {beta_true:g}" if beta_true is not None else "a large β"
-    return (f"{n_cap} of {n} episodes hit the {max_steps}-step cap without reaching the goal. "
-            f"This is the model, not a bug: the paper's max-ent person is paid for randomness "
-            f"(β × entropy per step) and entering the goal ends the pay, so with {who} next to their "
-            f"weights, wandering is worth more than finishing.")
+    text = (f"{n_cap} of {n} episode{'s' if n != 1 else ''} hit the {max_steps}-step cap without "
+            "reaching the goal. That is the model, not a bug:")
+    pays = move is not None and move[0] > 0
+    if pays:
+        text += (f" some moves pay (reward θ*·φ up to +{move[0]:.2g}, from {move[1]}), so going "
+                 "round can be worth more than finishing;")
+    if not pays or beta_true is None or beta_true >= GROUP_BOUNDARIES[0]:
+        who = f"β* = {beta_true:g}" if beta_true is not None else "a large β"
+        text += (f" {'and ' if pays else ''}the paper's max-ent person is paid for randomness "
+                 f"(β × entropy per step) while entering the goal ends all pay, and with {who} "
+                 "wandering is worth more than finishing.")
+    else:
+        text = text.rstrip(";") + "."
+    return text.replace(";.", ".")
 
 
 def render_demo_png(path: str | Path, run, *, title: str | None = None,
@@ -708,16 +738,16 @@ def render_demo_png(path: str | Path, run, *, title: str | None = None,
     n = len(paths)
     n_goal = sum(o == "goal" for o in outcomes)
 
-    mw, mh = _map_size(zm, 6.6, 5.6)
+    mw, mh = _map_size(zm, 6.6, 6.6)
     shown_ids = ", ".join(str(int(e)) for e in ids[:shown])
     notes = [f"Episode{'s' if shown != 1 else ''} {shown_ids} drawn "
              f"({shown} of {n}); every episode is in the visit dots."]
-    note = cap_note(outcomes, max_steps, run.beta_true)
+    note = cap_note(outcomes, max_steps, run.beta_true, best_move(mdp, run.theta_true))
     if note:
         notes.append(note)
     import textwrap
 
-    width = max(60, int((mw + 0.4) * 14.5))
+    width = max(60, int((mw + 0.4) * 16))
     text = "\n".join(textwrap.fill(t, width) for t in notes)
     heights = [mh, 0.78, 0.2 + 0.15 * shown, 0.1 + 0.135 * (text.count("\n") + 1)]
     fig = _new_figure((mw + 5.8, max(sum(heights) + 0.7, 7.6)))

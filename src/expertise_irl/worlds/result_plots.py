@@ -1,0 +1,523 @@
+"""Figures of result documents: what ``expertise-irl plot RESULT.json`` draws.
+
+One figure per result (any method of ``infer``, or ``demo``'s result):
+
+- the posterior of β and of each θ_i: bars of the marginal for a discrete hypothesis set;
+  histograms with the 90% credible interval shaded for sampling methods (``birl``,
+  ``nuts``); a marked point for ``map``, which has no posterior;
+- the map with the demonstrations, when a map (or an MDP archive with ``state_xy``) and
+  demonstrations are given;
+- for ``--per-action`` discrete results, the trace: β̂ with its 90% band, the
+  expertise-group probabilities and the posterior entropy against the number of
+  actions seen, with a dashed line where each new episode starts.
+
+Like :mod:`.render`, figures are built on a :class:`~matplotlib.figure.Figure` directly
+(no pyplot state). Artists carry gids so that tests can find them.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import InputError
+from . import render
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from ..demos import Trajectories
+    from ..mdp import TabularMDP
+    from .zones import ZoneMap
+
+METHODS = ("discrete", "birl", "map", "nuts")
+SAMPLED = ("birl", "nuts")
+CREDIBLE = 0.9
+GROUPS = ("high", "medium", "low")
+GROUP_COLORS = {"high": "#2b8a3e", "medium": "#e67700", "low": "#c92a2a"}
+POST_COLOR = "#4c72b0"
+BAND_COLOR = "#a5c0e6"
+POINT_COLOR = "#c0392b"
+BOUNDARY_COLOR = "#868e96"
+
+
+# ----------------------------------------------------------------------- loading
+def _is_num(x) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def load_result(path: str | Path) -> dict[str, Any]:
+    """Read and check a result JSON written by ``infer`` or ``demo``.
+
+    Raises :class:`InputError` naming ``path`` if it is not JSON or not a result.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a result JSON (not UTF-8 text)") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not a result JSON (line {exc.lineno}: {exc.msg})") from None
+    check_result(doc, path)
+    return doc
+
+
+def check_result(doc, path: str | Path) -> None:
+    """Raise :class:`InputError` naming ``path`` unless ``doc`` is a result document."""
+    if not isinstance(doc, dict) or "method" not in doc:
+        raise InputError(f"{path}: not an expertise-irl result (no 'method'; write one with "
+                         "`expertise-irl infer`)")
+    method = doc["method"]
+    if method not in METHODS:
+        raise InputError(f"{path}: unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    names = doc.get("feature_names")
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise InputError(f"{path}: 'feature_names' must be a non-empty list of names")
+    K = len(names)
+    if not _is_num(doc.get("beta_hat")):
+        raise InputError(f"{path}: 'beta_hat' must be a finite number")
+    th = doc.get("theta_hat")
+    if not isinstance(th, list) or len(th) != K or not all(_is_num(v) for v in th):
+        raise InputError(f"{path}: 'theta_hat' must be {K} finite numbers (one per feature)")
+    if method == "discrete":
+        _check_marginals(doc, path, K)
+        trace = doc.get("trace")
+        if trace is not None and (not isinstance(trace, list) or not trace or not all(
+                isinstance(e, dict) and _is_num(e.get("beta_hat")) and _is_num(e.get("entropy"))
+                for e in trace)):
+            raise InputError(f"{path}: 'trace' must be a list of entries with beta_hat and entropy")
+    elif method in SAMPLED and "samples" not in doc:
+        raise InputError(f"{path}: a {method} result needs 'samples'")
+
+
+def _check_marginals(doc, path, K: int) -> None:
+    m = doc.get("marginals")
+    try:
+        b, t = m["beta"], m["theta"]
+        bv, bp = np.asarray(b["values"], dtype=float), np.asarray(b["probabilities"], dtype=float)
+        tv, tp = np.asarray(t["values"], dtype=float), np.asarray(t["probabilities"], dtype=float)
+    except (TypeError, KeyError, ValueError):
+        raise InputError(f"{path}: a discrete result needs 'marginals' of beta and theta "
+                         "(values and probabilities)") from None
+    if bv.ndim != 1 or bv.shape != bp.shape or bv.size == 0:
+        raise InputError(f"{path}: marginals.beta: values and probabilities must be equal-length lists")
+    if tv.ndim != 2 or tv.shape[1] != K or tp.shape != (tv.shape[0],):
+        raise InputError(f"{path}: marginals.theta: expected [n, {K}] values and n probabilities")
+    for what, p in (("beta", bp), ("theta", tp)):
+        if not np.all(np.isfinite(p)) or (p < 0).any() or p.sum() <= 0:
+            raise InputError(f"{path}: marginals.{what}: probabilities must be finite, >= 0, not all 0")
+
+
+def load_samples(doc: dict[str, Any], path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(chain [n], beta [n], theta [n, K])`` of a sampling result.
+
+    ``samples`` is inline (``{"chain", "beta", "theta"}``) or the path of a CSV
+    ``chain,draw,beta,<feature names>``; a relative path not found as given is looked up
+    in the folder of the result ``path``.
+    """
+    path = Path(path)
+    names = doc["feature_names"]
+    K = len(names)
+    s = doc["samples"]
+    if isinstance(s, dict):
+        try:
+            chain = np.asarray(s["chain"], dtype=np.int64)
+            beta = np.asarray(s["beta"], dtype=float)
+            theta = np.asarray(s["theta"], dtype=float).reshape(len(beta), K)
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{path}: 'samples' must hold chain, beta and theta ({K} per draw) "
+                             "of equal length") from None
+    elif isinstance(s, str):
+        csv_path = Path(s)
+        if not csv_path.is_file() and not csv_path.is_absolute():
+            csv_path = path.parent / csv_path
+        if not csv_path.is_file() and (path.parent / Path(s).name).is_file():
+            csv_path = path.parent / Path(s).name
+        if not csv_path.is_file():
+            raise InputError(f"{path}: its samples file {s} is not found (looked beside the result too)")
+        chain, beta, theta = _read_samples_csv(csv_path, names)
+    else:
+        raise InputError(f"{path}: 'samples' must be an object or the path of a CSV")
+    if chain.shape != beta.shape or len(beta) == 0:
+        raise InputError(f"{path}: 'samples' must hold at least one draw, chain and beta of equal length")
+    if not (np.all(np.isfinite(beta)) and np.all(np.isfinite(theta))):
+        raise InputError(f"{path}: 'samples' hold non-finite values")
+    return chain, beta, theta
+
+
+def _read_samples_csv(path: Path, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    with open(path, encoding="utf-8", newline="") as fh:
+        rows = list(csv.reader(fh))
+    want = ["chain", "draw", "beta", *names]
+    if not rows or rows[0] != want:
+        raise InputError(f"{path}:1: expected the header {','.join(want)}")
+    try:
+        data = np.array([[float(v) for v in r] for r in rows[1:] if r], dtype=float)
+    except ValueError:
+        raise InputError(f"{path}: every value after the header must be a number") from None
+    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(want):
+        raise InputError(f"{path}: expected at least one row of {len(want)} numbers")
+    return data[:, 0].astype(np.int64), data[:, 2], data[:, 3:]
+
+
+def check_features(doc: dict[str, Any], result_path, mdp: TabularMDP, mdp_label) -> None:
+    """The map's features must be the result's ``feature_names``, in order."""
+    have, want = list(mdp.feature_names), list(doc["feature_names"])
+    if have != want:
+        raise InputError(f"{mdp_label}: its features ({', '.join(have)}) do not match the "
+                         f"feature_names of {result_path} ({', '.join(want)})")
+
+
+# --------------------------------------------------------------------- posterior
+def theta_component_marginal(values, probs, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(v, P(θ_i = v))`` from the θ marginal: probabilities of equal θ_i (to 1e-9) summed."""
+    v = np.round(np.asarray(values, dtype=float)[:, i], 9) + 0.0
+    p = np.asarray(probs, dtype=float)
+    uniq, inv = np.unique(v, return_inverse=True)
+    return uniq, np.bincount(inv.ravel(), weights=p / p.sum(), minlength=len(uniq))
+
+
+def draw_discrete_component(ax: Axes, values, probs, name: str, *, mean: float | None = None,
+                            true: float | None = None) -> Axes:
+    """Bars of P(θ_i = v) at the values v of the set (gid ``"marginal"`` on each bar)."""
+    v, p = np.asarray(values, dtype=float), np.asarray(probs, dtype=float)
+    gaps = np.diff(v)
+    width = min(0.06, 0.8 * float(gaps.min())) if gaps.size else 0.06
+    bars = ax.bar(v, p, width=width, color=POST_COLOR, edgecolor="#2f4b7c", lw=0.5)
+    for bar in bars:
+        bar.set_gid("marginal")
+    if mean is not None:
+        ax.axvline(mean, color="#1a1a1a", lw=1.1, ls="--", gid="mean")
+    if true is not None:
+        ax.axvline(true, color=POINT_COLOR, lw=1.3, gid="true")
+    lo, hi = min(0.0, float(v.min())), max(1.0, float(v.max()))
+    ax.set_xlim(lo - 0.06, hi + 0.06)
+    ax.set_ylim(0, max(float(p.max()) * 1.15, 0.05))
+    ax.set_title(rf"$\theta$ {name}: E = {mean:.3g}" if mean is not None else rf"$\theta$ {name}",
+                 fontsize=8.5)
+    ax.set_ylabel("marginal prob.", fontsize=7.5)
+    render._tidy(ax)
+    return ax
+
+
+def draw_sampled(ax: Axes, draws, label: str, *, interval=None, mean: float | None = None,
+                 point: float | None = None, true: float | None = None, log: bool = False) -> Axes:
+    """Histogram (density) of ``draws`` with the 90% interval shaded (gid ``"interval"``).
+
+    ``interval`` defaults to the 5%/95% quantiles of the draws. ``mean`` is a dashed line,
+    ``point`` (the MAP draw) a marker on the axis, ``true`` a red line.
+    """
+    x = np.asarray(draws, dtype=float)
+    if interval is None:
+        interval = np.quantile(x, [(1 - CREDIBLE) / 2, (1 + CREDIBLE) / 2]).tolist()
+    lo, hi = float(interval[0]), float(interval[1])
+    ax.axvspan(lo, hi, color=BAND_COLOR, alpha=0.55, lw=0, gid="interval", zorder=0)
+    span = float(x.max() - x.min())
+    bins: Any = min(30, max(5, int(np.sqrt(x.size)) + 1))
+    if span == 0:
+        bins = [x[0] - 0.005, x[0] + 0.005]
+    ax.hist(x, bins=bins, density=True, color=POST_COLOR, alpha=0.85, edgecolor="white", lw=0.3,
+            gid="hist", zorder=2)
+    if mean is not None:
+        ax.axvline(mean, color="#1a1a1a", lw=1.1, ls="--", gid="mean", zorder=3)
+    if point is not None:
+        ax.plot([point], [0], ls="", marker="^", ms=7, color=POINT_COLOR, clip_on=False,
+                gid="map-point", zorder=4)
+    if true is not None:
+        ax.axvline(true, color=POINT_COLOR, lw=1.3, gid="true", zorder=3)
+    ax.set_title(f"{label}: 90% [{lo:.3g}, {hi:.3g}]", fontsize=8.5)
+    ax.set_ylabel("density", fontsize=7.5)
+    ax.set_yticks([])
+    render._tidy(ax)
+    return ax
+
+
+def draw_point(ax: Axes, value: float, label: str, *, lo: float, hi: float, log: bool = False) -> Axes:
+    """A single estimate on an axis from ``lo`` to ``hi`` (gid ``"point"``): no posterior to draw."""
+    ax.plot([value], [0.5], ls="", marker="D", ms=8, color=POINT_COLOR, gid="point")
+    ax.axvline(value, color=POINT_COLOR, lw=0.8, alpha=0.5)
+    if log:
+        ax.set_xscale("log")
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(0, 1)
+    ax.set_yticks([])
+    ax.set_title(f"{label} = {value:{'.3g' if log else '.3f'}}  (point estimate)", fontsize=8.5)
+    render._tidy(ax)
+    ax.spines["left"].set_visible(False)
+    return ax
+
+
+# -------------------------------------------------------------------------- trace
+def trace_arrays(trace: list[dict[str, Any]]) -> dict[str, np.ndarray | None]:
+    """Arrays of a JSON trace: ``x`` (actions seen), ``beta_hat``, ``entropy``, ``band``
+    ``[N + 1, 2]`` and ``groups`` ``[N + 1, 3]`` (None when the result predates them),
+    and ``boundaries``: the x at which each episode after the first starts."""
+    n = len(trace)
+    x = np.arange(n)
+    out: dict[str, np.ndarray | None] = {
+        "x": x,
+        "beta_hat": np.array([e["beta_hat"] for e in trace], dtype=float),
+        "entropy": np.array([e["entropy"] for e in trace], dtype=float),
+        "band": None,
+        "groups": None,
+    }
+    if all("beta_band" in e for e in trace):
+        out["band"] = np.array([e["beta_band"] for e in trace], dtype=float)
+    if all(isinstance(e.get("group_probabilities"), dict) for e in trace):
+        out["groups"] = np.array([[e["group_probabilities"].get(g, np.nan) for g in GROUPS]
+                                  for e in trace], dtype=float)
+    # entry i (i >= 1) is the belief after action i - 1; an episode starts at entry i when its
+    # step is 0, so its boundary is drawn at x = i - 1 (the actions seen before it).
+    out["boundaries"] = np.array([i - 1 for i in range(2, n) if trace[i].get("step") == 0], dtype=int)
+    out["episodes"] = np.array([-1 if e.get("episode") is None else e["episode"] for e in trace])
+    return out
+
+
+def draw_trace(axes: Sequence[Axes], trace: list[dict[str, Any]], *, beta_true: float | None = None,
+               betas=None) -> Sequence[Axes]:
+    """Three panels against the number of actions seen: β̂ with its 90% band, the group
+    probabilities, and the posterior entropy; dashed lines where episodes start.
+
+    gids: ``"trace-beta"``, ``"trace-band"``, ``"trace-group-<high|medium|low>"``,
+    ``"trace-entropy"``, ``"episode-boundary"`` (one per boundary per panel).
+    """
+    ax_b, ax_g, ax_e = axes
+    t = trace_arrays(trace)
+    x = t["x"]
+    if t["band"] is not None:
+        ax_b.fill_between(x, t["band"][:, 0], t["band"][:, 1], step="mid", color=BAND_COLOR,
+                          alpha=0.6, lw=0, label="90% band of the β marginal", gid="trace-band")
+    ax_b.plot(x, t["beta_hat"], color=POST_COLOR, lw=1.4, label=r"$\hat\beta$ = E[$\beta$]",
+              gid="trace-beta")
+    if beta_true is not None:
+        ax_b.axhline(beta_true, color=POINT_COLOR, lw=1.0, ls=":", label=rf"true $\beta^*$ = {beta_true:g}")
+    positive = t["beta_hat"] > 0
+    if positive.all() and (t["band"] is None or (t["band"] > 0).all()):
+        ax_b.set_yscale("log")
+        if betas is not None:
+            ticks = sorted(set(np.asarray(betas, dtype=float).tolist()))
+            ax_b.set_yticks(ticks, [f"{v:g}" for v in ticks])
+            ax_b.minorticks_off()
+    ax_b.set_ylabel(r"expertise $\beta$", fontsize=8)
+    title = r"belief after each action: $\hat\beta$"
+    if t["band"] is None:
+        title += "  (this result has no band: rerun infer --per-action)"
+    ax_b.set_title(title, fontsize=9)
+    ax_b.legend(fontsize=7, frameon=False, loc="upper right")
+
+    if t["groups"] is not None:
+        for j, g in enumerate(GROUPS):
+            ax_g.plot(x, t["groups"][:, j], color=GROUP_COLORS[g], lw=1.3, label=g,
+                      gid=f"trace-group-{g}")
+        ax_g.legend(fontsize=7, frameon=False, loc="upper right", ncol=3, title="expertise group",
+                    title_fontsize=7)
+    else:
+        ax_g.text(0.5, 0.5, "no group probabilities in this result (rerun infer --per-action)",
+                  ha="center", va="center", transform=ax_g.transAxes, fontsize=8, color="#666")
+    ax_g.set_ylim(-0.02, 1.05)
+    ax_g.set_ylabel("P(group)", fontsize=8)
+
+    ax_e.plot(x, t["entropy"], color="#495057", lw=1.3, gid="trace-entropy")
+    ax_e.set_ylabel("entropy (nats)", fontsize=8)
+    ax_e.set_xlabel("actions seen (0 = prior); dashed lines: a new episode starts", fontsize=8)
+    ax_e.set_ylim(bottom=0)
+    for ax in axes:
+        for b in t["boundaries"]:
+            ax.axvline(b, color=BOUNDARY_COLOR, lw=0.7, ls="--", gid="episode-boundary", zorder=0)
+        ax.set_xlim(0, max(len(x) - 1, 1))
+        render._tidy(ax)
+    return axes
+
+
+# ------------------------------------------------------------------------ the map
+def draw_mdp_cells(ax: Axes, mdp: TabularMDP) -> Axes:
+    """The cells of an MDP archive with ``state_xy``: free cells light, goals green."""
+    from matplotlib.patches import Circle, Rectangle
+
+    xy = np.asarray(mdp.state_xy)
+    w, h = int(xy[:, 0].max()) + 1, int(xy[:, 1].max()) + 1
+    ax.add_patch(Rectangle((-0.5, -0.5), w, h, fc="#3a3a3a", ec="none", zorder=0))
+    for s, (x, y) in enumerate(xy.tolist()):
+        ax.add_patch(Rectangle((x - 0.5, y - 0.5), 1, 1, fc="#fafafa", ec=render.GRID_COLOR,
+                               lw=0.4, zorder=1))
+        if mdp.terminal[s]:
+            ax.add_patch(Circle((x, y), 0.36, fc=render.GOAL_COLOR, ec="white", lw=0.8, zorder=6,
+                                gid="goal"))
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    return ax
+
+
+def _grid_of(mdp: TabularMDP):
+    """A stand-in with ``width``/``height`` for path checks on an MDP archive."""
+    xy = np.asarray(mdp.state_xy)
+
+    class _Grid:
+        width = int(xy[:, 0].max()) + 1
+        height = int(xy[:, 1].max()) + 1
+
+    return _Grid()
+
+
+def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs: Trajectories | None,
+                      *, n_episodes: int = render.DEMO_EPISODES, max_steps: int | None = None) -> list:
+    """The map, visit dots of every episode and the first few episodes drawn distinctly.
+
+    Returns the legend handles (zones, markers, episodes).
+    """
+    if zone_map is not None:
+        render.draw_map(ax, zone_map, legend=False)
+        grid = zone_map
+        handles = render.map_legend_handles(zone_map)
+    else:
+        draw_mdp_cells(ax, mdp)
+        grid = _grid_of(mdp)
+        handles = []
+    if trajs is None:
+        return handles
+    paths = render.paths_to_xy(trajs, mdp)
+    outcomes = render.episode_outcomes(trajs, mdp, max_steps)
+    render.draw_visits(ax, grid, paths)
+    shown = min(n_episodes, len(paths))
+    ids = trajs.episode_ids
+    eps = render.draw_episodes(ax, grid, paths[:shown], outcomes[:shown],
+                               labels=[f"episode {int(e)}" for e in ids[:shown]])
+    return handles + render.episode_marker_handles(outcomes[:shown]) + eps
+
+
+# ------------------------------------------------------------------------ figure
+def render_result_png(
+    path: str | Path,
+    doc: dict[str, Any],
+    *,
+    source: str | Path = "result",
+    mdp: TabularMDP | None = None,
+    zone_map: ZoneMap | None = None,
+    trajs: Trajectories | None = None,
+) -> Path:
+    """Save the figure of a result document (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output image; the format follows the suffix (matplotlib's savefig).
+    doc : dict
+        The result, as checked by :func:`load_result`.
+    source : str or Path
+        The result's file: its folder is where a samples CSV is looked up; its name is
+        in the title.
+    mdp, zone_map, trajs : optional
+        The task (a text map gives ``zone_map``; an archive only ``mdp``, drawn from
+        ``state_xy``) and the demonstrations to draw on it.
+    """
+    source = Path(source)
+    method = doc["method"]
+    names = list(doc["feature_names"])
+    K = len(names)
+    truth = doc.get("truth") if isinstance(doc.get("truth"), dict) else {}
+    beta_true = truth.get("beta") if _is_num(truth.get("beta")) else None
+    theta_true = truth.get("theta") if isinstance(truth.get("theta"), list) and len(
+        truth.get("theta")) == K else None
+    trace = doc.get("trace") if method == "discrete" else None
+    draw_map = mdp is not None and (zone_map is not None or mdp.state_xy is not None)
+
+    ncols = 3 if K + 1 > 4 else K + 1
+    nrows = math.ceil((K + 1) / ncols)
+    post_h = 2.0 * nrows
+    map_w = 0.0
+    if draw_map:
+        mw, mh = render._map_size(zone_map, 5.5, 5.5) if zone_map is not None else (4.5, 4.5)
+        map_w = mw + 0.3
+        post_h = max(post_h, mh + (1.4 if trajs is not None else 0.6))
+    trace_h = 5.2 if trace else 0.0
+    fig = render._new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + 0.6))
+    top = fig
+    if trace:
+        top, bottom = fig.subfigures(2, 1, height_ratios=[post_h, trace_h], hspace=0.02)
+    if draw_map:
+        sf_map, sf_post = top.subfigures(1, 2, width_ratios=[map_w, 3.0 * ncols], wspace=0.02)
+        ax_map = sf_map.add_subplot()
+        handles = draw_demos_on_map(ax_map, mdp, zone_map, trajs)
+        n = trajs.n_episodes if trajs is not None else 0
+        label = zone_map.name if zone_map is not None else Path(str(mdp.source)).name
+        ax_map.set_title(f"{label}: {n} episode{'s' if n != 1 else ''}" if trajs is not None else label,
+                         fontsize=9)
+        if handles:
+            ax_map.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=2,
+                          frameon=False, fontsize=7, handlelength=1.3, columnspacing=0.9)
+    else:
+        sf_post = top
+    axes = sf_post.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax in axes[K + 1:]:
+        ax.axis("off")
+    ax_beta, ax_th = axes[0], axes[1:K + 1]
+
+    subtitle = ""
+    if method == "discrete":
+        m = doc["marginals"]
+        betas, pb = m["beta"]["values"], m["beta"]["probabilities"]
+        render.draw_beta_marginal(ax_beta, betas, pb, beta_true=beta_true)
+        ax_beta.set_title(rf"$\beta$: marginal posterior, E = {doc['beta_hat']:.3g}", fontsize=8.5)
+        ax_beta.set_ylabel("marginal prob.", fontsize=7.5)
+        ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
+        tv, tp = m["theta"]["values"], m["theta"]["probabilities"]
+        for i, ax in enumerate(ax_th):
+            v, p = theta_component_marginal(tv, tp, i)
+            draw_discrete_component(ax, v, p, names[i], mean=doc["theta_hat"][i],
+                                    true=None if theta_true is None else theta_true[i])
+        subtitle = (f"discrete set: {len(betas)} β × {len(tv)} θ; bars = marginal posterior "
+                    "probabilities; dashed = posterior mean")
+    elif method in SAMPLED:
+        chain, beta, theta = load_samples(doc, source)
+        ci = doc.get("credible_intervals") if isinstance(doc.get("credible_intervals"), dict) else {}
+        mp = doc.get("map") if isinstance(doc.get("map"), dict) else {}
+        b_int = ci.get("beta") if _valid_interval(ci.get("beta")) else None
+        draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=doc["beta_hat"],
+                     point=mp.get("beta") if _is_num(mp.get("beta")) else None, true=beta_true)
+        ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
+        t_ints = ci.get("theta") if isinstance(ci.get("theta"), list) and len(ci.get("theta")) == K else None
+        mp_t = mp.get("theta") if isinstance(mp.get("theta"), list) and len(mp.get("theta")) == K else None
+        for i, ax in enumerate(ax_th):
+            draw_sampled(ax, theta[:, i], rf"$\theta$ {names[i]}",
+                         interval=t_ints[i] if t_ints and _valid_interval(t_ints[i]) else None,
+                         mean=doc["theta_hat"][i], point=None if mp_t is None else mp_t[i],
+                         true=None if theta_true is None else theta_true[i])
+        n_chains = len(np.unique(chain))
+        subtitle = (f"{len(beta)} draws from {n_chains} chain{'s' if n_chains != 1 else ''}; "
+                    "shaded = 90% credible interval; dashed = posterior mean; ▲ = best draw")
+    else:  # map: a point, no posterior
+        draw_point(ax_beta, doc["beta_hat"], r"$\hat\beta$", lo=0.005, hi=20, log=True)
+        ax_beta.set_xlabel(r"$\beta$ (log scale; low = expert)", fontsize=7.5)
+        hi = max(1.0, max(doc["theta_hat"]) * 1.1)
+        for i, ax in enumerate(ax_th):
+            draw_point(ax, doc["theta_hat"][i], rf"$\hat\theta$ {names[i]}", lo=-0.02, hi=hi)
+        subtitle = "MAP optimum only: this method gives a point, not a posterior"
+
+    if trace:
+        axs = bottom.subplots(3, 1, sharex=True, height_ratios=[1.3, 1.0, 0.8])
+        betas = doc["marginals"]["beta"]["values"]
+        draw_trace(axs, trace, beta_true=beta_true, betas=betas)
+
+    data = doc.get("data") if isinstance(doc.get("data"), dict) else {}
+    what = ""
+    if _is_num(data.get("episodes")) and _is_num(data.get("actions")):
+        what = f", {int(data['episodes'])} episodes, {int(data['actions'])} actions"
+    fig.suptitle(f"{source.name}: {method}{what}; β̂ = {doc['beta_hat']:.3g} "
+                 f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}", fontsize=10)
+    out = Path(path)
+    fig.savefig(out, dpi=render.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    fig.clear()
+    return out
+
+
+def _valid_interval(v) -> bool:
+    return isinstance(v, list | tuple) and len(v) == 2 and all(_is_num(x) for x in v) and v[0] <= v[1]
