@@ -721,6 +721,12 @@ def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | 
 
 def render_demo_png(path: str | Path, run, *, title: str | None = None,
                     n_episodes: int = DEMO_EPISODES, max_moves: int | None = DEMO_MOVES) -> Path:
+    """Save the ``expertise-irl demo`` figure (:func:`demo_figure`) as a PNG (dpi 120)."""
+    return _save(demo_figure(run, title=title, n_episodes=n_episodes, max_moves=max_moves), path)
+
+
+def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODES,
+                max_moves: int | None = DEMO_MOVES) -> Figure:
     """The ``expertise-irl demo`` figure of a :class:`~expertise_irl.experiments.demo.DemoRun`.
 
     Left: the map with a heat map of where every episode went, ``n_episodes`` episodes
@@ -794,4 +800,4 @@ def render_demo_png(path: str | Path, run, *, title: str | None = None,
     ax_top.set_xlabel("marginal probability", fontsize=8.5)
     if title:
         fig.suptitle(title, fontsize=11)
-    return _save(fig, path)
+    return fig

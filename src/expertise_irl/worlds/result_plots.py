@@ -404,12 +404,26 @@ def render_result_png(
     zone_map: ZoneMap | None = None,
     trajs: Trajectories | None = None,
 ) -> Path:
-    """Save the figure of a result document (see the module docstring).
+    """Save :func:`result_figure` to ``path`` (the format follows the suffix; PNG at dpi 120)."""
+    fig = result_figure(doc, source=source, mdp=mdp, zone_map=zone_map, trajs=trajs)
+    out = Path(path)
+    fig.savefig(out, dpi=render.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    fig.clear()
+    return out
+
+
+def result_figure(
+    doc: dict[str, Any],
+    *,
+    source: str | Path = "result",
+    mdp: TabularMDP | None = None,
+    zone_map: ZoneMap | None = None,
+    trajs: Trajectories | None = None,
+):
+    """The :class:`~matplotlib.figure.Figure` of a result document (see the module docstring).
 
     Parameters
     ----------
-    path : str or Path
-        Output image; the format follows the suffix (matplotlib's savefig).
     doc : dict
         The result, as checked by :func:`load_result`.
     source : str or Path
@@ -513,10 +527,7 @@ def render_result_png(
         what = f", {int(data['episodes'])} episodes, {int(data['actions'])} actions"
     fig.suptitle(f"{source.name}: {method}{what}; β̂ = {doc['beta_hat']:.3g} "
                  f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}", fontsize=10)
-    out = Path(path)
-    fig.savefig(out, dpi=render.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
-    fig.clear()
-    return out
+    return fig
 
 
 def _valid_interval(v) -> bool:
