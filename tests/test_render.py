@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import struct
 
 import matplotlib
@@ -253,3 +254,131 @@ def test_theta_summary_without_truth_or_top_list():
         render.draw_theta_summary(new_ax(), thetas, [1, 1, 1], ["a", "b"])
     with pytest.raises(ValueError, match="theta_true must have 3 components"):
         render.draw_theta_summary(new_ax(), thetas, [1, 1, 1], "abc", theta_true=[1, 0])
+
+
+# ------------------------------------------------------------------- demo figure
+@pytest.fixture(scope="module")
+def wandering_run():
+    """Seed 0: β* = 10 on a generated map without roads; every episode runs to the cap."""
+    from expertise_irl.experiments.demo import run_demo
+
+    return run_demo(0, episodes=5)
+
+
+@pytest.fixture(scope="module")
+def expert_run():
+    """Seed 3: β* = 0.01; every episode reaches the goal."""
+    from expertise_irl.experiments.demo import run_demo
+
+    return run_demo(3, episodes=6)
+
+
+def _map_axes(fig):
+    (ax,) = [ax for ax in fig.get_axes() if [c for c in ax.collections if c.get_gid() == "visits"]]
+    return ax
+
+
+def _texts(fig) -> str:
+    return "\n".join(t.get_text() for ax in fig.get_axes() for t in ax.texts)
+
+
+def test_episode_outcomes_goal_cap_and_cut():
+    zm = parse_map("S..\n.#G\n")
+    mdp = zm.to_mdp()
+    idx = zm.state_index()
+    trajs = Trajectories(
+        episode=[0, 0, 0, 1, 1, 1, 2],
+        step=[0, 1, 2, 0, 1, 2, 0],
+        state=[idx[0, 0], idx[0, 1], idx[0, 2], idx[0, 0], idx[0, 1], idx[0, 0], idx[0, 0]],
+        action=[RIGHT, RIGHT, DOWN, RIGHT, LEFT, RIGHT, DOWN],
+    )
+    assert render.episode_outcomes(trajs, mdp, 3) == ["goal", "cap", "cut"]
+    assert render.episode_outcomes(trajs, mdp, None) == ["goal", "cut", "cut"]
+
+
+def test_demo_figure_draws_a_few_episodes_and_says_why_they_hit_the_cap(wandering_run):
+    run = wandering_run
+    fig = render.demo_figure(run, title="t")
+    ax = _map_axes(fig)
+    paths = render.paths_to_xy(run.trajectories, run.mdp)
+    n = len(paths)
+    drawn = [ln for ln in ax.lines if re.fullmatch(r"episode-\d+", ln.get_gid() or "")]
+    assert len(drawn) == min(render.DEMO_EPISODES, n) < n
+    for i, ln in enumerate(drawn):
+        xy = ln.get_xydata()
+        assert len(xy) <= render.DEMO_MOVES + 1  # a 500-step walk is cut for drawing
+        off = xy - paths[i][: len(xy)]
+        assert np.allclose(off, off[0]) and np.hypot(*off[0]) <= 0.2
+        (start,) = [m for m in ax.lines if m.get_gid() == f"episode-{i}-start"]
+        (end,) = [m for m in ax.lines if m.get_gid() == f"episode-{i}-end"]
+        np.testing.assert_allclose(start.get_xydata()[0], paths[i][0] + off[0])
+        np.testing.assert_allclose(end.get_xydata()[0], paths[i][-1] + off[0])  # where it stopped
+        assert end.get_marker() == "X"
+    # Independently: episodes of max_steps actions whose last state is not a goal.
+    capped = sum(len(s) == run.max_steps and not run.mdp.terminal[p[-1]]
+                 for (s, _), p in zip(run.trajectories.episodes(), run.trajectories.paths(run.mdp),
+                                      strict=True))
+    assert capped == n  # seed 0 wanders: the premise of this test
+    text = _texts(fig)
+    assert f"{capped} of {n} episodes hit the {run.max_steps}-step cap" in text
+    assert "randomness" in text and "entropy" in text
+    labels = [t.get_text() for a in fig.get_axes() if a.get_legend() for t in a.get_legend().get_texts()]
+    assert "episode start" in labels and "episode end: step cap" in labels
+    assert sum("episode 0: stopped at the 500-step cap" in lb for lb in labels) == 1
+
+
+def test_demo_figure_visit_dots_cover_every_episode(wandering_run):
+    run = wandering_run
+    ax = _map_axes(render.demo_figure(run))
+    (dots,) = [c for c in ax.collections if c.get_gid() == "visits"]
+    counts = np.zeros((run.zone_map.height, run.zone_map.width))
+    for p in render.paths_to_xy(run.trajectories, run.mdp):
+        for x, y in p:
+            counts[y, x] += 1
+    cells = np.argwhere(counts > 0)
+    circles = dots.get_paths()
+    assert len(circles) == len(cells)
+    radii = np.array([np.ptp(c.vertices[:, 0]) / 2 for c in circles])
+    np.testing.assert_allclose(radii, 0.38 * np.sqrt(counts[cells[:, 0], cells[:, 1]] / counts.max()),
+                               rtol=1e-6)
+    assert dots.get_zorder() < min(ln.get_zorder() for ln in ax.lines)  # under the paths
+    (img,) = ax.images  # the zones, drawn once, under the dots
+    assert img.get_zorder() < dots.get_zorder()
+
+
+def test_demo_figure_labels_joint_and_marginal_and_absent_features(wandering_run):
+    run = wandering_run
+    fig = render.demo_figure(run)
+    titles = [ax.get_title() for ax in fig.get_axes()]
+    assert any(t.startswith("marginal posterior of") for t in titles)
+    (top,) = [t for t in titles if "joint" in t]
+    assert "marginal P(" in top
+    p_truth = float(run.belief.probabilities[run.truth_index])
+    assert f"= {p_truth:.3f}" in top
+    assert not np.isin(run.zone_map.grid, list(">v<^")).any()  # no road on this map
+    marked = [t.get_text() for ax in fig.get_axes() for t in ax.get_xticklabels()
+              if t.get_gid() == "absent-feature"]
+    assert marked == ["road\n(not on map)"]
+    assert render.absent_features(run.mdp) == [False, True, False, False, False]
+
+
+def test_demo_figure_of_an_expert_reports_no_cap(expert_run, tmp_path):
+    run = expert_run
+    fig = render.demo_figure(run)
+    ax = _map_axes(fig)
+    ends = [m for m in ax.lines if re.fullmatch(r"episode-\d+-end", m.get_gid() or "")]
+    assert len(ends) == render.DEMO_EPISODES and {m.get_marker() for m in ends} == {"*"}
+    assert "cap" not in _texts(fig)
+    assert "reached the goal" in ax.get_title()
+    before = plt.get_fignums()
+    out = render.render_demo_png(tmp_path / "d.png", run, title="x")
+    assert out.read_bytes()[:8] == PNG_SIGNATURE and plt.get_fignums() == before
+
+
+def test_cap_note_names_paying_moves_and_entropy():
+    assert render.cap_note(["goal", "cut"], 500, 10.0) is None
+    note = render.cap_note(["cap", "goal"], 500, 0.01, (0.14, "road"))
+    assert note.startswith("1 of 2 episodes hit the 500-step cap")
+    assert "from road" in note and "entropy" not in note  # an expert: the road pays
+    note = render.cap_note(["cap"], 200, 10.0, (-0.2, "length"))
+    assert "200-step cap" in note and "entropy" in note and "from length" not in note
