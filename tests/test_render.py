@@ -358,7 +358,7 @@ def test_demo_figure_labels_joint_and_marginal_and_absent_features(wandering_run
     assert not np.isin(run.zone_map.grid, list(">v<^")).any()  # no road on this map
     marked = [t.get_text() for ax in fig.get_axes() for t in ax.get_xticklabels()
               if t.get_gid() == "absent-feature"]
-    assert marked == ["road\n(not on map)"]
+    assert marked == ["road\n(not on\nthe map)"]
     assert render.absent_features(run.mdp) == [False, True, False, False, False]
 
 

@@ -368,11 +368,12 @@ def draw_theta_summary(
     gone = [False] * K if absent is None else [bool(a) for a in absent]
     if len(gone) != K:
         raise ValueError(f"absent must have {K} entries, got {len(gone)}")
-    ax.set_xticks(x, [f"{nm}\n(not on map)" if g else nm for nm, g in zip(names, gone, strict=True)],
+    ax.set_xticks(x, [f"{nm}\n(not on\nthe map)" if g else nm for nm, g in zip(names, gone, strict=True)],
                   fontsize=8)
     for xi, (tick, g) in enumerate(zip(ax.get_xticklabels(), gone, strict=True)):
         if g:
             tick.set_color("#8a8a8a")
+            tick.set_fontsize(6.8)
             tick.set_gid("absent-feature")
             for bar in ax.patches:
                 if abs(bar.get_x() + bar.get_width() / 2 - xi) < 0.5:
