@@ -205,9 +205,10 @@ def inferred(work, corridor_csv):
 # ----------------------------------------------------------------------------- demo
 def test_demo_writes_png_and_result(demo_a):
     out_dir, _ = demo_a
-    assert sorted(p.name for p in out_dir.iterdir()) == ["demo-seed0.png", "result-seed0.json"]
-    assert (out_dir / "demo-seed0.png").read_bytes()[:8] == PNG_SIGNATURE
-    doc = load(out_dir / "result-seed0.json")
+    names = sorted(p.name for p in out_dir.iterdir())
+    assert names == ["demo-corridor-seed0.png", "result-corridor-seed0.json"]
+    assert (out_dir / "demo-corridor-seed0.png").read_bytes()[:8] == PNG_SIGNATURE
+    doc = load(out_dir / "result-corridor-seed0.json")
     for key in ("beta_hat", "theta_hat", "hypotheses", "settings", "version", "truth", "metrics"):
         assert key in doc, key
     theta, beta, p = check_hypotheses(doc)
@@ -231,7 +232,7 @@ def test_demo_writes_png_and_result(demo_a):
 
 def test_demo_table_shows_truth_inference_and_metrics(demo_a):
     out_dir, result = demo_a
-    doc = load(out_dir / "result-seed0.json")
+    doc = load(out_dir / "result-corridor-seed0.json")
     stdout = result.stdout
     truth, m = doc["truth"], doc["metrics"]
     assert table_cells(stdout, "expertise β", exact=True) == [f"{truth['beta']:g}", f"{doc['beta_hat']:.3g}"]
@@ -242,7 +243,8 @@ def test_demo_table_shows_truth_inference_and_metrics(demo_a):
     assert table_cells(stdout, "expertise distance") == ["", f"{m['expertise_distance']:.3g}"]
     assert table_cells(stdout, "cosine similarity") == ["", f"{m['cosine_similarity']:.3f}"]
     assert table_cells(stdout, "policy regret") == ["", f"{m['policy_regret']:.3g}"]
-    assert str(out_dir / "demo-seed0.png") in stdout and str(out_dir / "result-seed0.json") in stdout
+    assert str(out_dir / "demo-corridor-seed0.png") in stdout
+    assert str(out_dir / "result-corridor-seed0.json") in stdout
 
 
 def test_demo_same_seed_same_result(work, demo_a):
@@ -250,8 +252,8 @@ def test_demo_same_seed_same_result(work, demo_a):
     out_b, out_c = work / "demo-b", work / "demo-c"
     ok(invoke("demo", "--map", "corridor", "--seed", 0, "--out", out_b))
     ok(invoke("demo", "--map", "corridor", "--seed", 1, "--out", out_c))
-    a, b = (load(d / "result-seed0.json") for d in (out_a, out_b))
-    c = load(out_c / "result-seed1.json")
+    a, b = (load(d / "result-corridor-seed0.json") for d in (out_a, out_b))
+    c = load(out_c / "result-corridor-seed1.json")
     for doc in (a, b, c):
         assert doc.pop("run_time_s") >= 0
     assert a == b
@@ -262,7 +264,7 @@ def test_demo_same_seed_same_result(work, demo_a):
 def test_demo_refuses_to_overwrite_without_force(demo_a, tmp_path):
     out_dir = tmp_path / "demo"
     shutil.copytree(demo_a[0], out_dir)
-    png, js = out_dir / "demo-seed0.png", out_dir / "result-seed0.json"
+    png, js = out_dir / "demo-corridor-seed0.png", out_dir / "result-corridor-seed0.json"
     for p in (png, js):
         age(p)
     before = {p: snapshot(p) for p in (png, js)}
@@ -282,12 +284,12 @@ def test_demo_refuses_to_overwrite_without_force(demo_a, tmp_path):
 def test_demo_checks_every_output_before_writing(demo_a, tmp_path):
     out_dir = tmp_path / "demo"
     out_dir.mkdir()
-    shutil.copy(demo_a[0] / "result-seed0.json", out_dir / "result-seed0.json")
-    before = snapshot(out_dir / "result-seed0.json")
+    shutil.copy(demo_a[0] / "result-corridor-seed0.json", out_dir / "result-corridor-seed0.json")
+    before = snapshot(out_dir / "result-corridor-seed0.json")
     assert_input_error(invoke("demo", "--map", "corridor", "--out", out_dir),
-                       "result-seed0.json", "already exists")
-    assert not (out_dir / "demo-seed0.png").exists()
-    assert snapshot(out_dir / "result-seed0.json") == before
+                       "result-corridor-seed0.json", "already exists")
+    assert not (out_dir / "demo-corridor-seed0.png").exists()
+    assert snapshot(out_dir / "result-corridor-seed0.json") == before
 
 
 def test_demo_default_generated_map_end_to_end(tmp_path):

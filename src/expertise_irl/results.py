@@ -81,13 +81,25 @@ def discrete_result(belief: DiscreteBelief, *, feature_names, settings: dict[str
     return doc
 
 
-def check_writable(path: str | Path, *, force: bool) -> Path:
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
+
+
+def check_writable(path: str | Path, *, force: bool, inputs=()) -> Path:
     """Check an output path before any work is done.
 
-    Refuses to overwrite an existing file unless ``force``; the parent must be an existing,
-    writable directory.
+    Refuses to overwrite an existing file unless ``force``, and refuses, even with ``force``,
+    a path that is one of the command's ``inputs`` (the same file by any name); the parent
+    must be an existing, writable directory.
     """
     path = Path(path)
+    for given in inputs:
+        if given is not None and _same_file(path, Path(given)):
+            raise InputError(f"{path}: is one of this command's inputs ({given}); "
+                             "choose another output path (--force never overwrites an input)")
     if path.is_dir():
         raise InputError(f"{path}: is a directory, expected a file path")
     if path.exists() and not force:
@@ -119,10 +131,30 @@ def write_json(path: str | Path, doc: dict[str, Any]) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=1, allow_nan=False)
             fh.write("\n")
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the mode open() would
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def finite_or_null(doc: Any, path: str = "", found: list[str] | None = None) -> Any:
+    """``doc`` with every non-finite float replaced by ``None``; the paths of those go to ``found``."""
+    if isinstance(doc, dict):
+        return {k: finite_or_null(v, f"{path}.{k}" if path else str(k), found) for k, v in doc.items()}
+    if isinstance(doc, list | tuple):
+        return [finite_or_null(v, f"{path}[{i}]", found) for i, v in enumerate(doc)]
+    if isinstance(doc, float | np.floating) and not math.isfinite(doc):
+        if found is not None:
+            found.append(path)
+        return None
+    return doc
 
 
 #: Draws written inline in the result JSON up to this many; beyond, to a CSV beside it.
@@ -151,6 +183,14 @@ def continuous_result(method_out: dict[str, Any], *, method: str, feature_names,
         "data": data,
         "settings": settings,
     }
+    # A statistic that came out NaN or infinite is written as null, with the reason.
+    bad: list[str] = []
+    doc = finite_or_null(doc, found=bad)
+    if bad:
+        diag = doc.setdefault("diagnostics", {})
+        missing = diag.setdefault("unavailable", {})
+        for where_ in bad:
+            missing.setdefault(where_, "not a finite number for this run (too few draws, or a stuck chain)")
     if draws is not None:
         chain, theta, beta = draws
         if len(beta) <= INLINE_DRAWS or samples_path is None:

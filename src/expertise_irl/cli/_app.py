@@ -17,8 +17,8 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from typer.core import TyperGroup
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from typer.core import TyperGroup, TyperOption
 
 from .. import __version__
 from ..errors import ConvergenceError, InputError
@@ -48,6 +48,14 @@ class _OneLineErrors(TyperGroup):
             return rv
         sys.exit(rv if isinstance(rv, int) else 0)
 
+
+def _flag_has_no_type(self, ctx):
+    """Flags take no value: show none (typer's rich help prints ``<bool>`` for them)."""
+    return None if getattr(self, "is_flag", False) else _display_type_rich(self, ctx)
+
+
+_display_type_rich = TyperOption.display_type_rich
+TyperOption.display_type_rich = _flag_has_no_type
 
 app = typer.Typer(
     name="expertise-irl",
@@ -96,12 +104,14 @@ def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-def _progress() -> Progress:
+def _progress(unit: str = "hypotheses") -> Progress:
     return Progress(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
-        TextColumn("{task.completed}/{task.total} hypotheses"),
+        TextColumn(f"{{task.completed}}/{{task.total}} {unit}"),
         TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
         console=err,
     )
 
@@ -113,6 +123,24 @@ def _solve_progress(bar: Progress, description: str) -> Callable[[int, int], Non
         bar.update(task, completed=done, total=total)
 
     return update
+
+
+def _map_files(map_spec: str | None) -> list[Path]:
+    """The files a MAP argument reads: the map and the settings TOML beside it (none if bundled)."""
+    if map_spec is None or not Path(map_spec).is_file():
+        return []
+    return [Path(map_spec), Path(map_spec).with_suffix(".toml")]
+
+
+def _warn(message: str) -> None:
+    """A warning on stderr (one line per warning)."""
+    err.print("[bold yellow]warning:[/] ", end="", highlight=False)
+    err.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+def _note(message: str) -> None:
+    """A note on stderr: information about the run, not part of its result."""
+    err.print(f"note: {message}", markup=False, highlight=False, soft_wrap=True)
 
 
 def _load_mdp(map_spec: str | None, mdp_path: Path | None):

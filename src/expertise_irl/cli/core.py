@@ -15,12 +15,14 @@ from ..errors import InputError
 from ._app import (
     _check_beta,
     _load_mdp,
+    _map_files,
+    _note,
     _parse_theta,
     _progress,
     _say,
     _solve_progress,
+    _warn,
     app,
-    err,
     handles_errors,
     out,
 )
@@ -32,7 +34,8 @@ from ._app import (
 def demo(
     seed: Annotated[int, typer.Option(min=0, help="Random seed: map, hypothesis set, truth, episodes.")] = 0,
     out_dir: Annotated[Path, typer.Option(
-        "--out", help="Directory for demo-seedN.png and result-seedN.json.")] = Path(
+        "--out", help="Directory for demo-seedN.png and result-seedN.json (demo-MAP-seedN.png and "
+        "result-MAP-seedN.json with --map).")] = Path(
         "expertise-irl-demo"
     ),
     map_spec: Annotated[
@@ -40,7 +43,7 @@ def demo(
     ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Episodes the simulated person demonstrates.")] = 20,
     k: Annotated[int, typer.Option(min=1, help="Preference vectors in the hypothesis set Θ_k.")] = 20,
-    force: Annotated[bool, typer.Option(help="Overwrite this seed's figure and result.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite this seed's figure and result.")] = False,
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
     from ..experiments.demo import demo_outputs, run_demo
@@ -54,9 +57,9 @@ def demo(
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a directory")
     out_dir.mkdir(parents=True, exist_ok=True)
-    png, js = demo_outputs(out_dir, seed)
+    png, js = demo_outputs(out_dir, seed, map_spec)
     for p in (png, js):
-        check_writable(p, force=force)
+        check_writable(p, force=force, inputs=_map_files(map_spec))
     t0 = time.perf_counter()
     with _progress() as bar:
         run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k,
@@ -102,13 +105,13 @@ def demo(
 def export_mdp(
     map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
     out_path: Annotated[Path, typer.Option("--out", help="Output .npz archive.")],
-    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Compile a text map to the MDP archive (.npz) that every command accepts."""
     from ..results import check_writable
     from ..worlds.zones import resolve_map
 
-    check_writable(out_path, force=force)
+    check_writable(out_path, force=force, inputs=_map_files(map_spec))
     mdp = resolve_map(map_spec).to_mdp()
     mdp.save(out_path)
     _say(f"wrote {out_path}: {mdp.n_states} states, {mdp.n_actions} actions, "
@@ -126,14 +129,14 @@ def simulate(
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (actions).")] = 500,
-    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Simulate a max-entropy person with preferences θ* and expertise β*; write demonstrations CSV."""
     from ..demos import simulate as simulate_episodes
     from ..demos import write_demos_csv
     from ..results import check_writable
 
-    check_writable(out_path, force=force)
+    check_writable(out_path, force=force, inputs=[*_map_files(map_spec), mdp_path])
     mdp, _ = _load_mdp(map_spec, mdp_path)
     th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
     _check_beta(beta)
@@ -146,6 +149,7 @@ def simulate(
 @app.command()
 @handles_errors
 def infer(
+    ctx: typer.Context,
     demos: Annotated[Path, typer.Option(help="Demonstrations CSV (episode,step,state,action or x,y).")],
     out_path: Annotated[Path, typer.Option("--out", help="Output result JSON.")],
     map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
@@ -157,7 +161,9 @@ def infer(
         help="B: a preset (paper-sim, paper-real) or comma-separated temperatures.")] = "paper-sim",
     sample_thetas: Annotated[int | None, typer.Option(
         min=1, help="Use only k preference vectors drawn at random (--seed) from Θ.")] = None,
-    seed: Annotated[int, typer.Option(min=0, help="Seed for --sample-thetas.")] = 0,
+    seed: Annotated[int, typer.Option(
+        min=0, help="Seed of every random choice: --sample-thetas, and the chains and starts of "
+        "birl, map and nuts.")] = 0,
     per_action: Annotated[bool, typer.Option(
         "--per-action", help="Update after every action and record the live estimates (trace).")] = False,
     tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
@@ -165,7 +171,8 @@ def infer(
         min=1, help="Hypotheses in flight at once in the solver (default: sized to the map).")] = None,
     method: Annotated[str, typer.Option(
         help="discrete (hypothesis set, Eq. 13), birl (Algorithm 1), map (L-BFGS on the simplex) "
-        "or nuts (full posterior).")] = "discrete",
+        "or nuts (full posterior). birl, map and nuts use the paper's prior: θ uniform, "
+        "β ~ Normal(5.005, 1.5) truncated to [0.01, 10].")] = "discrete",
     iterations: Annotated[int, typer.Option(min=1, help="birl: iterations K.")] = 1000,
     delta: Annotated[float, typer.Option(help="birl: θ grid step δ.")] = 0.05,
     beta_step: Annotated[float, typer.Option(help="birl: β grid step.")] = 0.1,
@@ -174,24 +181,29 @@ def infer(
     chains: Annotated[int, typer.Option(min=1, help="nuts: chains.")] = 4,
     warmup: Annotated[int, typer.Option(min=1, help="nuts: warm-up steps per chain.")] = 500,
     samples: Annotated[int, typer.Option(min=1, help="nuts: draws per chain.")] = 500,
-    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Infer expertise β and preferences θ from demonstrations.
 
-    The default method is the paper's discrete hypothesis set (Eq. 13); birl, map and nuts
-    search the continuous space (θ on the simplex or box, β > 0). --seed makes every method
-    reproducible.
+    The default method is the paper's discrete hypothesis set (Eq. 13, uniform prior over
+    the set); birl, map and nuts search the continuous space (θ on the simplex or box,
+    β > 0) under the paper's prior (Sec. VII-A): θ uniform, β ~ Normal(5.005, 1.5)
+    truncated to [0.01, 10], so β̂ is pulled towards 5 when the data say little.
+    --seed makes every method reproducible. Convergence warnings go to stderr and to the
+    result's diagnostics.warnings.
     """
     from ..demos import read_demos_csv
     from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
     from ..hypotheses import sample_thetas as sample
     from ..inference.belief import DiscreteBelief
     from ..inference.continuous import METHODS
+    from ..inference.diagnostics import discrete_warnings
     from ..results import check_writable, discrete_result, file_digest, write_json
 
     if method not in METHODS:
         raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
-    check_writable(out_path, force=force)
+    _refuse_options_of_other_methods(ctx, method)
+    check_writable(out_path, force=force, inputs=[demos, *_map_files(map_spec), mdp_path])
     if not (0 < tol <= MAX_TOL):
         raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {tol:g}")
     mdp, zone_map = _load_mdp(map_spec, mdp_path)
@@ -202,6 +214,7 @@ def infer(
         opts = MethodOptions(iterations=iterations, delta=delta, beta_step=beta_step, variant=variant,
                              starts=starts, chains=chains, warmup=warmup, samples=samples)
         _infer_continuous(method, mdp, zone_map, trajs, opts, seed=seed, out_path=out_path, force=force,
+                          inputs=[demos, *_map_files(map_spec), mdp_path],
                           source={"mdp": str(mdp_path) if mdp_path else str(map_spec),
                                   "mdp_digest": file_digest(mdp_path) if mdp_path else _map_digest(zone_map),
                                   "demos": str(demos), "demos_digest": file_digest(demos)})
@@ -209,8 +222,8 @@ def infer(
     th = resolve_thetas(thetas, mdp.n_features)
     if sample_thetas is not None:
         if sample_thetas > len(th):
-            _say(f"note: --sample-thetas {sample_thetas} exceeds the {len(th)} directions of "
-                 f"--thetas {thetas}; using all of them")
+            _note(f"--sample-thetas {sample_thetas} exceeds the {len(th)} directions of "
+                  f"--thetas {thetas}; using all of them")
         th = sample(th, min(sample_thetas, len(th)), np.random.default_rng(seed))
     hyp = HypothesisSet(th, resolve_betas(betas))
     t0 = time.perf_counter()
@@ -233,34 +246,64 @@ def infer(
     doc = discrete_result(post, feature_names=mdp.feature_names, settings=settings,
                           data={"episodes": trajs.n_episodes, "actions": len(trajs)},
                           trace=trace, trace_index=(trajs.episode, trajs.step))
+    doc["diagnostics"] = {"warnings": discrete_warnings(post, mdp.feature_names)}
     doc["run_time_s"] = elapsed
     write_json(out_path, doc)
     theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(mdp.feature_names, post.mean_theta, strict=True))
     _say(f"β̂ = {post.mean_beta:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
     if post.n_impossible:
-        _say(f"note: {post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
+        _note(f"{post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
+    for w in doc["diagnostics"]["warnings"]:
+        _warn(w)
     _say(f"wrote {out_path} ({len(hyp)} hypotheses, {len(trajs)} actions, {elapsed:.1f} s)")
 
 
 MAX_TOL = 0.1  # nats; a looser tolerance would make the log-likelihoods meaningless
 
 
-def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, force, source) -> None:
+#: The options that only some methods read (the others refuse them when given).
+METHOD_OPTIONS = {
+    "discrete": ("thetas", "betas", "sample_thetas", "per_action", "tol", "chunk_size"),
+    "birl": ("iterations", "delta", "beta_step", "variant"),
+    "map": ("starts",),
+    "nuts": ("chains", "warmup", "samples"),
+}
+
+
+def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:
+    for other, names in METHOD_OPTIONS.items():
+        if other == method:
+            continue
+        for name in names:
+            source = ctx.get_parameter_source(name)  # typer's own click: compare by name
+            if source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP"):
+                flag = "--" + name.replace("_", "-")
+                raise InputError(f"{flag} applies only to --method {other}, not to --method {method}")
+
+
+def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, force, source,
+                      inputs) -> None:
     from dataclasses import asdict
 
     from ..inference.continuous import run_method
+    from ..inference.priors import PRIOR_TEXT
     from ..results import INLINE_DRAWS, check_writable, continuous_result, samples_path_for, write_json
 
     samples_path = samples_path_for(out_path)
-    if method == "nuts" and opts.chains * opts.samples > INLINE_DRAWS:
-        check_writable(samples_path, force=force)
-    elif method == "birl" and opts.iterations > INLINE_DRAWS:
-        check_writable(samples_path, force=force)
-    with err.status(f"running {method}…"):
-        res = run_method(method, mdp, trajs, opts, seed)
+    if (method == "nuts" and opts.chains * opts.samples > INLINE_DRAWS) or (
+            method == "birl" and opts.iterations > INLINE_DRAWS):
+        check_writable(samples_path, force=force, inputs=inputs)
+    opts.validate()
+    _note(f"prior: {PRIOR_TEXT}")
+    if method == "nuts":  # NumPyro draws its own bar (all chains advance together)
+        res = run_method(method, mdp, trajs, opts, seed, progress=lambda done, total: None)
+    else:
+        unit, label = ("iterations", "Algorithm 1") if method == "birl" else ("starts", "MAP (L-BFGS-B)")
+        with _progress(unit) as bar:
+            res = run_method(method, mdp, trajs, opts, seed, progress=_solve_progress(bar, label))
     settings = {"command": "infer", "method": method, **source, "seed": seed, **asdict(opts),
                 "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-                "gamma": mdp.gamma, "prior": "theta uniform; beta Normal(5.005, 1.5) on [0.01, 10]"}
+                "gamma": mdp.gamma, "prior": PRIOR_TEXT}
     doc = continuous_result(res, method=method, feature_names=mdp.feature_names, settings=settings,
                             data={"episodes": trajs.n_episodes, "actions": len(trajs)},
                             samples_path=samples_path)
@@ -270,6 +313,8 @@ def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, for
     ci = doc.get("credible_intervals")
     if ci:
         _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
+    for w in doc["diagnostics"].get("warnings", []):
+        _warn(w)
     extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
     _say(f"wrote {out_path}{extra} ({method}, {len(trajs)} actions, {doc['run_time_s']:.1f} s)")
 
@@ -288,7 +333,7 @@ def render(
     map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
     out_path: Annotated[Path, typer.Option("--out", help="Output PNG.")],
     demos: Annotated[Path | None, typer.Option(help="Demonstrations CSV to draw on the map.")] = None,
-    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Draw a map (and optionally demonstrations) as a PNG in the style of the paper's Fig. 1."""
     from ..demos import read_demos_csv
@@ -296,7 +341,7 @@ def render(
     from ..worlds.render import paths_to_xy, render_map_png
     from ..worlds.zones import resolve_map
 
-    check_writable(out_path, force=force)
+    check_writable(out_path, force=force, inputs=[*_map_files(map_spec), demos])
     _check_figure_format(out_path)
     zone_map = resolve_map(map_spec)
     paths = None

@@ -275,6 +275,7 @@ def extended_birl(
     tol: float = 1e-6,
     warm_start: bool = True,
     cache: bool = True,
+    progress: Callable[[int, int], None] | None = None,
 ) -> BIRLResult:
     """Sample P(θ, β | Ξ) with Algorithm 1 (see the module docstring for every choice made).
 
@@ -294,6 +295,7 @@ def extended_birl(
         tol: solver tolerance (nats on V/β; log-likelihood error ≤ 2·tol per pair).
         warm_start: warm-start each solve from the current point's value function.
         cache: remember each lattice point's log-likelihood.
+        progress: called as ``progress(done, n_iter)`` about a hundred times during the walk.
 
     Raises:
         InputError: a bad parameter (the message names it) or demonstrations impossible in ``mdp``.
@@ -395,6 +397,7 @@ def extended_birl(
     accepted = np.zeros(n_iter, dtype=bool)
     ms[0], js[0], lps[0] = m, j, cur
     n_oob = 0
+    report_every = max(1, n_iter // 100)
     for i in range(n_iter):
         move_theta = moves == "both" or which[i] == 0
         move_beta = moves == "both" or which[i] == 1
@@ -425,6 +428,8 @@ def extended_birl(
                     if v is not None:
                         warm.update(v=v, beta=beta_of(j))
         ms[i + 1], js[i + 1], lps[i + 1] = m, j, cur
+        if progress is not None and (i + 1 == n_iter or (i + 1) % report_every == 0):
+            progress(i + 1, n_iter)
 
     theta = ms * delta
     beta = b_lo + js * beta_step

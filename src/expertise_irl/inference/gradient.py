@@ -25,6 +25,7 @@ from ..demos import Trajectories
 from ..errors import InputError
 from ..likelihood import make_log_likelihood, pair_counts
 from ..mdp import TabularMDP
+from .diagnostics import chain_statistics
 from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE
 
 
@@ -70,11 +71,13 @@ def map_estimate(
     log_prior: Callable | None = None,
     beta_range: tuple[float, float] = BETA_RANGE,
     tol: float = 1e-10,
+    progress: Callable[[int, int], None] | None = None,
 ) -> MAPResult:
     """Maximise log P(Ξ | θ, β) + log P(θ, β) by L-BFGS-B from ``n_starts`` random starts.
 
     Starts: θ uniform on the simplex, log β uniform on ``log beta_range``. The β search is
     bounded to ``beta_range``; θ moves freely on the simplex (components approach 0 as z → −∞).
+    ``progress(done, n_starts)`` is called after each start.
     """
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
@@ -105,7 +108,7 @@ def map_estimate(
 
     bounds = [(None, None)] * K + [(math.log(lo), math.log(hi))]
     starts, optima, best = [], [], None
-    for _ in range(n_starts):
+    for i in range(n_starts):
         theta0 = rng.dirichlet(np.ones(K))
         beta0 = math.exp(rng.uniform(math.log(lo), math.log(hi)))
         x0 = np.concatenate([np.log(np.maximum(theta0, 1e-12)), [math.log(beta0)]])
@@ -115,6 +118,8 @@ def map_estimate(
         optima.append(-res.fun)
         if best is None or res.fun < best.fun:
             best = res
+        if progress is not None:
+            progress(i + 1, n_starts)
     theta, beta = _unpack(jnp.asarray(best.x))
     return MAPResult(np.asarray(theta), float(beta), float(-best.fun), np.array(starts),
                      np.array(optima), evaluations)
@@ -135,8 +140,11 @@ class NUTSResult:
         theta: ``[chains, draws, K]`` samples of θ (on the simplex).
         beta: ``[chains, draws]`` samples of β.
         idata: the ArviZ ``InferenceData`` (posterior, sample_stats).
-        r_hat: ``{"beta": float, "theta": [K]}`` split-R̂ (rank-normalised).
-        ess: ``{"beta": float, "theta": [K]}`` bulk effective sample size.
+        r_hat: ``{"beta": float, "theta": [K]}`` split-R̂ (rank-normalised), or None when the
+            run is too short to compute it (fewer than 2 chains or 4 draws; see ``unavailable``).
+        ess: ``{"beta": float, "theta": [K]}`` bulk effective sample size, or None (fewer than
+            4 draws per chain).
+        unavailable: ``{statistic: reason}`` for each statistic that could not be computed.
         divergences: number of divergent transitions after warm-up.
         log_density: ``[chains, draws]`` unnormalised log-posterior of each draw (θ, β space).
     """
@@ -144,10 +152,11 @@ class NUTSResult:
     theta: np.ndarray
     beta: np.ndarray
     idata: object
-    r_hat: dict
-    ess: dict
+    r_hat: dict | None
+    ess: dict | None
     divergences: int
     log_density: np.ndarray
+    unavailable: dict
 
     @property
     def mean_theta(self) -> np.ndarray:
@@ -173,12 +182,15 @@ def nuts_posterior(
     theta_prior=None,
     beta_prior=None,
     tol: float = 1e-8,
+    progress_bar: bool = False,
 ) -> NUTSResult:
     """Sample P(θ, β | Ξ) with NumPyro's NUTS on the same log-density as :func:`map_estimate`.
 
     Priors default to the paper's (flat Dirichlet on the simplex for θ; Normal(5.005, 1.5)
     truncated to [0.01, 10] for β); pass NumPyro distributions to change them. Chains are
-    vectorised (run side by side in one program), which is fastest on a CPU.
+    vectorised (run side by side in one program), which is fastest on a CPU; with
+    ``progress_bar`` NumPyro shows one bar on stderr for all of them (they advance in lockstep),
+    with the time left.
     """
     import arviz as az
     import numpyro
@@ -203,19 +215,17 @@ def nuts_posterior(
         numpyro.factor("log_likelihood", ll)
 
     mcmc = MCMC(NUTS(model), num_warmup=int(num_warmup), num_samples=int(num_samples),
-                num_chains=int(num_chains), chain_method="vectorized", progress_bar=False)
+                num_chains=int(num_chains), chain_method="vectorized", progress_bar=progress_bar)
     mcmc.run(jax.random.PRNGKey(int(seed)), extra_fields=("diverging",))
     samples = mcmc.get_samples(group_by_chain=True)
     th, be = samples["theta"], samples["beta"]
     density = jax.vmap(jax.vmap(lambda t, b: f(t, b)[0] + theta_prior.log_prob(t) + beta_prior.log_prob(b)))
     log_density = np.asarray(density(th, be))
     idata = az.from_numpyro(mcmc)
-    rhat = az.rhat(idata, var_names=["theta", "beta"])
-    ess = az.ess(idata, var_names=["theta", "beta"], method="bulk")
+    theta_draws, beta_draws = np.asarray(th), np.asarray(be)
+    stats = chain_statistics(theta_draws, beta_draws)
     divergences = int(np.sum(np.asarray(mcmc.get_extra_fields()["diverging"])))
     return NUTSResult(
-        theta=np.asarray(samples["theta"]), beta=np.asarray(samples["beta"]), idata=idata,
-        r_hat={"beta": float(rhat["beta"]), "theta": np.asarray(rhat["theta"]).tolist()},
-        ess={"beta": float(ess["beta"]), "theta": np.asarray(ess["theta"]).tolist()},
-        divergences=divergences, log_density=log_density,
+        theta=theta_draws, beta=beta_draws, idata=idata, r_hat=stats["r_hat"], ess=stats["ess_bulk"],
+        divergences=divergences, log_density=log_density, unavailable=stats["unavailable"],
     )

@@ -1,0 +1,155 @@
+"""Diagnostics: statistics that cannot be computed are None with a reason; each threshold warns."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, theta_grid
+from expertise_irl.inference import diagnostics as dg
+from expertise_irl.inference.belief import DiscreteBelief
+
+NAMES = ("length", "road")
+
+
+def draws(rng, C, D, shift=0.0):
+    """``theta [C, D, 2]``, ``beta [C, D]``: iid normal draws, chain c shifted by ``c * shift``."""
+    beta = rng.normal(size=(C, D)) + shift * np.arange(C)[:, None]
+    theta = rng.normal(size=(C, D, 2)) + shift * np.arange(C)[:, None, None]
+    return theta, beta
+
+
+def test_chain_statistics_of_iid_chains():
+    # 4 chains x 1000 iid draws: R-hat is 1 + O(1/sqrt(4000)) and bulk ESS ≈ 4000 (sd ≈ 4000 * 0.03).
+    theta, beta = draws(np.random.default_rng(0), 4, 1000)
+    s = dg.chain_statistics(theta, beta)
+    assert s["unavailable"] == {}
+    assert max(s["r_hat"]["beta"], *s["r_hat"]["theta"]) < dg.R_HAT_MAX
+    assert 3000 < s["ess_bulk"]["beta"] < 5000
+    assert dg.sampling_warnings(s, chains=4, feature_names=NAMES, more="--samples") == []
+
+
+def test_chains_that_disagree_warn_on_r_hat():
+    theta, beta = draws(np.random.default_rng(1), 2, 200, shift=1.0)
+    s = dg.chain_statistics(theta, beta)
+    w = dg.sampling_warnings(s, chains=2, feature_names=NAMES, more="--samples")
+    assert any(m.startswith("R-hat of ") and "--samples" in m for m in w), w
+
+
+def test_autocorrelated_chain_warns_on_ess():
+    # A random walk: 400 draws with an ESS of a few.
+    rng = np.random.default_rng(2)
+    beta = np.cumsum(rng.normal(size=(2, 400)), axis=1)
+    theta = np.repeat(beta[..., None], 2, axis=2)
+    s = dg.chain_statistics(theta, beta)
+    w = dg.sampling_warnings(s, chains=2, feature_names=NAMES, more="--samples")
+    assert any(m.startswith("bulk ESS of ") and "(< 100 per chain = 200)" in m for m in w), w
+
+
+@pytest.mark.parametrize("C,D,missing", [(1, 50, {"r_hat"}), (2, 3, {"r_hat", "ess_bulk"}),
+                                         (1, 1, {"r_hat", "ess_bulk"})])
+def test_too_short_runs_give_none_with_a_reason(C, D, missing):
+    theta, beta = draws(np.random.default_rng(3), C, D)
+    s = dg.chain_statistics(theta, beta)
+    assert set(s["unavailable"]) == missing
+    for name in missing:
+        assert s[name] is None
+        assert f"has {C} chain(s) of {D}" in s["unavailable"][name] or f"has {D}" in s["unavailable"][name]
+    w = dg.sampling_warnings(s, chains=C, feature_names=NAMES, more="--samples")
+    assert sum(m.startswith("convergence not checked") for m in w) == len(missing)
+
+
+def test_one_chain_split_in_halves():
+    rng = np.random.default_rng(4)
+    beta = rng.normal(size=600)
+    theta = rng.normal(size=(600, 2))
+    s = dg.chain_statistics(theta, beta, halves=True)
+    assert s["unavailable"] == {} and s["r_hat"]["beta"] < dg.R_HAT_MAX
+    assert 450 < s["ess_bulk"]["beta"] < 750  # the whole chain's ESS, not a half's
+    drift = np.linspace(0, 5, 600)  # a chain that drifts: its halves disagree
+    s = dg.chain_statistics(theta + drift[:, None], beta + drift, halves=True)
+    assert s["r_hat"]["beta"] > 1.5
+    short = dg.chain_statistics(theta[:5], beta[:5], halves=True)
+    assert short["r_hat"] is None and "halves" in short["unavailable"]["r_hat"]
+    assert short["ess_bulk"]["beta"] is not None
+
+
+def test_nuts_warnings():
+    diag = {"r_hat": None, "ess_bulk": None, "divergences": 3, "chains": 1,
+            "unavailable": {"r_hat": "R-hat needs at least 2 chains"}}
+    w = dg.nuts_warnings(diag, NAMES)
+    assert any("3 divergent transitions" in m for m in w)
+    assert any("--chains 2 or more" in m for m in w)
+    diag.update(divergences=0, unavailable={}, chains=2)
+    assert dg.nuts_warnings(diag, NAMES) == []
+
+
+def test_birl_acceptance_warning():
+    base = {"r_hat": None, "ess_bulk": None, "unavailable": {}}
+    stuck = dg.birl_warnings({**base, "acceptance_rate": 0.01}, NAMES)
+    assert any("acceptance rate 0.010" in m for m in stuck)
+    assert dg.birl_warnings({**base, "acceptance_rate": 0.2}, NAMES) == []
+
+
+@pytest.mark.parametrize("optima,warns", [([-10.0, -10.05, -20.0], False), ([-10.0, -12.0, -20.0], True),
+                                          ([-10.0], False)])
+def test_map_starts_that_disagree(optima, warns):
+    w = dg.map_warnings({"optima": optima}, 1.0, (0.01, 10.0))
+    assert any("starts reached the best" in m for m in w) == warns
+    if warns:
+        assert "2–10 nats lower" in w[0]
+
+
+def test_map_beta_on_the_prior_edge():
+    assert any("edge of the prior" in m for m in dg.map_warnings({"optima": [-1.0]}, 0.01, (0.01, 10.0)))
+    assert dg.map_warnings({"optima": [-1.0]}, 0.5, (0.01, 10.0)) == []
+
+
+def belief_with(probabilities, thetas, betas) -> DiscreteBelief:
+    """A belief whose posterior is ``probabilities`` (flattened θ-major), from one observed pair."""
+    hyp = HypothesisSet(np.asarray(thetas, dtype=float), betas)
+    p = np.asarray(probabilities, dtype=float)
+    log_policy = np.stack([np.log(p), np.log1p(-p)], axis=-1)[:, None, :]  # [H, 1 state, 2 actions]
+    return DiscreteBelief.from_log_policy(hyp, log_policy).update_pairs([0], [0])
+
+
+@pytest.mark.parametrize("edge_mass,warns", [(0.12, True), (0.08, False)])
+def test_discrete_mass_on_the_smallest_beta(edge_mass, warns):
+    betas = [0.01, 1.0, 10.0]
+    rest = (1 - edge_mass) / 2
+    # one θ; posterior ∝ likelihood, so these are the β marginal
+    b = belief_with([edge_mass, rest, rest], [[1.0, 0.0]], betas)
+    assert b.marginal_beta()[1][0] == pytest.approx(edge_mass)
+    w = dg.discrete_warnings(b, NAMES)
+    assert any("smallest β" in m and "--betas 0.001,0.00333333,0.01,1,10" in m for m in w) == warns
+
+
+def test_discrete_mass_on_the_largest_beta():
+    b = belief_with([0.05, 0.25, 0.7], [[1.0, 0.0]], [0.01, 1.0, 10.0])
+    w = dg.discrete_warnings(b, NAMES)
+    assert len(w) == 1 and "largest β" in w[0] and "--betas 0.01,1,10,30,100" in w[0]
+
+
+def test_discrete_mass_on_the_border_of_the_theta_set():
+    # θ_length takes values 0.3..0.7 in this set: 0.7 is an edge of the set, not of the simplex.
+    thetas = [[0.7, 0.3], [0.5, 0.5], [0.3, 0.7]]
+    b = belief_with([0.6, 0.3, 0.1], thetas, [1.0])
+    w = dg.discrete_warnings(b, NAMES)
+    assert any("θ_length = 0.7, the largest value in the set" in m for m in w), w
+    assert not any("θ_length = 0.3" in m for m in w)
+    full = [[1.0, 0.0], [0.5, 0.5], [0.0, 1.0]]  # edges of the simplex itself never warn
+    assert dg.discrete_warnings(belief_with([0.9, 0.05, 0.05], full, [1.0]), NAMES) == []
+
+
+def test_a_real_experts_single_demonstration_warns_with_the_default_grid():
+    """A person far more expert than the grid's smallest β: the warning says which --betas to add."""
+    from expertise_irl.demos import simulate
+    from expertise_irl.worlds.zones import load_bundled
+
+    mdp = load_bundled("crossroads").to_mdp()
+    trajs = simulate(mdp, np.array([1.0, 0, 0, 0, 0]), 0.002, 1, np.random.default_rng(0))
+    hyp = HypothesisSet(theta_grid(THETA_PRESETS["paper-real"], mdp.n_features), BETA_PRESETS["paper-sim"])
+    post = DiscreteBelief.from_mdp(mdp, hyp).update(trajs)
+    assert post.marginal_beta()[1][0] >= dg.EDGE_MASS
+    w = dg.discrete_warnings(post, mdp.feature_names)
+    assert any("smallest β of the grid (0.01)" in m and "--betas 0.001," in m for m in w), w
