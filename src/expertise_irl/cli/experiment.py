@@ -16,6 +16,9 @@ experiment_app = typer.Typer(
 )
 app.add_typer(experiment_app, name="experiment")
 
+#: Seconds to start the worker processes (Python, NumPy and JAX imports).
+STARTUP_S = 5.0
+
 
 def _duration(seconds: float | None) -> str:
     if seconds is None:
@@ -115,7 +118,7 @@ def list_cmd() -> None:
         for scale, cfg in st.scales.items():
             c = st.counts(cfg)
             tasks = st.tasks(cfg)
-            est = sum(t.estimate_s for t in tasks) / min(cores, len(tasks))
+            est = STARTUP_S + sum(t.estimate_s for t in tasks) / min(cores, len(tasks))
             table.add_row(st.name, scale, str(len(tasks)), str(c.get("instances", "")),
                           str(c.get("rows", "")),
                           f"{c.get('set_solves_grouped', '')} / {c.get('set_solves_ungrouped', '')}",

@@ -76,7 +76,9 @@ class Study:
         description: one line for ``experiment list``.
         config_type: a frozen dataclass; its fields are the study's factors.
         scales: scale name -> config.
-        tasks: config -> task specs (each task's key unique within the study).
+        tasks: config -> task specs (each task's key unique within the study), in the order
+            they should be handed out (e.g. long ones first, maps interleaved so that workers
+            compile different maps' kernels at the start).
         run_task: (config, seed, params) -> (columns dict of 1-D arrays, stats dict).
         columns: the documented schema of the rows.
         sort_by: columns that order the rows of :func:`load`.
@@ -214,6 +216,19 @@ def execute_task(study_name: str, config: dict[str, Any], seed: int, key: str,
     return TaskResult(key, columns, stats)
 
 
+def _exit_with_parent(parent: int) -> None:
+    """Pool initializer: end this worker when the process that started it is gone (e.g. killed)."""
+    import threading
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent:
+                os._exit(3)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def _error_info(exc: BaseException) -> dict[str, str]:
     return {"error_type": type(exc).__name__, "message": str(exc),
             "traceback": "".join(traceback.format_exception(exc))}
@@ -230,7 +245,8 @@ def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[T
     pending = list(todo)
     ctx = mp.get_context("spawn")
     while pending:
-        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx) as pool:
+        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
+                                 initializer=_exit_with_parent, initargs=(os.getpid(),)) as pool:
             futures = {}
             for t in pending:
                 attempts[t.key] += 1
@@ -363,7 +379,6 @@ def run(
         store.remove("failures", key)
     failed -= done
     todo = [t for t in tasks if t.key not in done and (retry_failed or t.key not in failed)]
-    todo.sort(key=lambda t: -t.estimate_s)  # longest first balances the workers
     if on_start is not None:
         on_start(len(tasks), len(todo))
     kill_after = next((int(a) for k, a in faults if k == "kill-after"), None)

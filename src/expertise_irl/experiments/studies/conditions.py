@@ -85,7 +85,7 @@ class ConditionsConfig:
 SCALES = {
     "smoke": ConditionsConfig(environments=2, runs=1, ks=(3, 5), episodes=3, low_episodes=5,
                               map_min_size=5, map_max_size=7, max_steps=60),
-    "small": ConditionsConfig(environments=3, runs=2, ks=(5, 10, 15, 20), map_min_size=10, map_max_size=20),
+    "small": ConditionsConfig(environments=5, runs=2),
     "paper": ConditionsConfig(),
 }
 
@@ -193,14 +193,29 @@ def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str,
 
 # ------------------------------------------------------------------------------ tasks
 def tasks(cfg: ConditionsConfig) -> list[TaskSpec]:
+    """One task per (environment, run, k): largest k first, environments interleaved."""
     out = []
-    n_people = len(cfg.people())
-    for e in range(cfg.environments):
+    seen: set[int] = set()
+    for k in sorted(cfg.ks, reverse=True):
         for r in range(cfg.runs):
-            for k in cfg.ks:
-                est = 1.0 + n_people * 0.6 + 0.004 * k * cfg.episodes * n_people
+            for e in range(cfg.environments):
+                est = estimate_s(cfg, k, first_on_map=e not in seen)
+                seen.add(e)
                 out.append(TaskSpec(f"e{e:03d}-r{r:03d}-k{k:03d}", {"environment": e, "run": r, "k": k}, est))
     return out
+
+
+def estimate_s(cfg: ConditionsConfig, k: int, *, first_on_map: bool = False) -> float:
+    """Rough seconds of one task for one worker of a 2-core laptop (measured at ``paper`` scale).
+
+    The first task on a map also pays for compiling the solver's kernels for that map (in
+    every worker that meets the map before the shared compilation cache holds them).
+    """
+    side = (cfg.map_min_size + cfg.map_max_size) / 2
+    states = 0.75 * side * side
+    person_episodes = sum(cfg.n_episodes(g, t) for g, t in cfg.people())
+    compile_s = 4.0 + 40.0 * states / 500 if first_on_map else 0.0  # every worker compiles
+    return 0.3 + states * (3.5e-5 * person_episodes + 2e-6 * 6 * k) + compile_s
 
 
 def counts(cfg: ConditionsConfig) -> dict[str, int]:

@@ -1,0 +1,123 @@
+"""``expertise-irl experiment run | status | list``: output, resume, one-line errors, fast help."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from expertise_irl.cli import app
+
+runner = CliRunner()
+
+
+def invoke(*args: str):
+    return runner.invoke(app, list(args))
+
+
+def one_line_error(result, *needles: str) -> None:
+    assert result.exit_code == 2, result.output
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    for n in needles:
+        assert n in lines[0], lines[0]
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cli") / "sweep"
+    result = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "2")
+    assert result.exit_code == 0, result.output
+    return out, result
+
+
+def test_run_reports_and_status_counts(sweep):
+    out, result = sweep
+    assert "4 task(s) run, 0 already done or skipped, 0 failed, 168 rows" in result.output
+    status = invoke("experiment", "status", str(out))
+    assert status.exit_code == 0, status.output
+    assert "tasks: 4 done / 4 total, 0 failed, 0 to do" in status.output
+    assert "rows: 168" in status.output and "time spent:" in status.output
+
+
+def test_rerun_skips_finished_tasks(sweep):
+    out, _ = sweep
+    again = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "1")
+    assert again.exit_code == 0, again.output
+    assert "0 task(s) run, 4 already done" in again.output
+
+
+def test_other_seed_on_same_dir_is_one_line_error(sweep):
+    out, _ = sweep
+    one_line_error(invoke("experiment", "run", "conditions", "--out", str(out), "--seed", "5"),
+                   "refusing to mix", "seed 0", "seed 5")
+    one_line_error(invoke("experiment", "run", "conditions", "--out", str(out), "--scale", "small"),
+                   "refusing to mix")
+
+
+def test_status_lists_failures_and_time_left(tmp_path, monkeypatch):
+    from expertise_irl.experiments.engine import FAULTS_ENV
+
+    out = tmp_path / "failing"
+    monkeypatch.setenv(FAULTS_ENV, "raise:e000-r000-k003")
+    result = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "1")
+    assert result.exit_code == 1, result.output
+    assert "1 failed" in result.output and "--retry-failed" in result.output
+    status = invoke("experiment", "status", str(out))
+    assert "tasks: 3 done / 4 total, 1 failed, 0 to do" in status.output
+    assert "failed: e000-r000-k003: injected failure" in status.output
+    monkeypatch.delenv(FAULTS_ENV)
+    retried = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "1", "--retry-failed")
+    assert retried.exit_code == 0 and "1 task(s) run" in retried.output, retried.output
+    assert "0 failed" in invoke("experiment", "status", str(out)).output
+
+
+def test_list_shows_every_scale_with_counts():
+    result = invoke("experiment", "list")
+    assert result.exit_code == 0, result.output
+    for scale in ("smoke", "small", "paper"):
+        assert scale in result.output
+    assert "conditions" in result.output and "100 / 1200" in result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["run", "nope", "--out", "{tmp}/x"], ["unknown study 'nope'", "conditions"]),
+        (["run", "conditions", "--out", "{tmp}/x", "--scale", "huge"], ["no scale 'huge'", "smoke"]),
+        (["run", "conditions", "--out", "{tmp}/x", "--workers", "0"], ["--workers"]),
+        (["run", "conditions"], ["--out"]),
+        (["status", "{tmp}"], ["not an experiment directory"]),
+        (["status", "{tmp}/missing"], ["not an experiment directory"]),
+    ],
+    ids=["unknown-study", "unknown-scale", "zero-workers", "no-out", "status-not-sweep", "status-missing"],
+)
+def test_bad_input_is_one_line_error(tmp_path, args, needles):
+    one_line_error(invoke("experiment", *[a.format(tmp=tmp_path) for a in args]), *needles)
+
+
+def test_run_into_a_file_or_foreign_directory_is_refused(tmp_path):
+    (tmp_path / "file").write_text("x")
+    one_line_error(invoke("experiment", "run", "conditions", "--out", str(tmp_path / "file")),
+                   "not a directory")
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "dir" / "mine.txt").write_text("x")
+    one_line_error(invoke("experiment", "run", "conditions", "--out", str(tmp_path / "dir")), "not empty")
+
+
+def test_help_does_not_import_heavy_modules():
+    code = (
+        "import sys\n"
+        "from expertise_irl.cli import app\n"
+        "try:\n"
+        "    app(['experiment', 'run', '--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = [m for m in ('jax', 'pandas', 'pyarrow', 'dask', 'distributed') if m in sys.modules]\n"
+        "print('HEAVY', heavy)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "--scheduler" in proc.stdout and "--retry-failed" in proc.stdout
+    assert "HEAVY []" in proc.stdout, proc.stdout
