@@ -236,7 +236,11 @@ def _error_info(exc: BaseException) -> dict[str, str]:
 
 # ---------------------------------------------------------------------------- engines
 def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[TaskResult]:
-    """Run tasks on a ``spawn`` process pool; rebuild the pool if a worker dies."""
+    """Run tasks on a ``spawn`` process pool; rebuild the pool if a worker dies.
+
+    If the caller stops early (an error, Ctrl-C) the queued tasks are cancelled and the
+    workers terminated rather than waited for.
+    """
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
@@ -245,9 +249,10 @@ def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[T
     pending = list(todo)
     ctx = mp.get_context("spawn")
     while pending:
-        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
-                                 initializer=_exit_with_parent, initargs=(os.getpid(),)) as pool:
-            futures = {}
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
+                                   initializer=_exit_with_parent, initargs=(os.getpid(),))
+        futures = {}
+        try:
             for t in pending:
                 attempts[t.key] += 1
                 futures[pool.submit(execute_task, *job, t.key, t.params)] = t
@@ -257,15 +262,24 @@ def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[T
                 for fut in done:
                     t = futures.pop(fut)
                     try:
-                        yield fut.result()
+                        res = fut.result()
                     except BrokenProcessPool as exc:
                         if attempts[t.key] < LOCAL_ATTEMPTS:
                             pending.append(t)
-                        else:
-                            yield TaskResult(t.key, None, {}, _error_info(RuntimeError(
-                                f"worker process died {attempts[t.key]} times running this task ({exc})")))
+                            continue
+                        res = TaskResult(t.key, None, {}, _error_info(RuntimeError(
+                            f"worker process died {attempts[t.key]} times running this task ({exc})")))
                     except Exception as exc:
-                        yield TaskResult(t.key, None, {}, _error_info(exc))
+                        res = TaskResult(t.key, None, {}, _error_info(exc))
+                    yield res
+        finally:
+            if futures:  # stopped early: do not wait for the rest
+                pool.shutdown(wait=False, cancel_futures=True)
+                procs = getattr(pool, "_processes", None) or {}
+                for proc in list(procs.values()):
+                    proc.terminate()
+            else:
+                pool.shutdown(wait=True)
 
 
 def _dask_results(todo: list[TaskSpec], job: tuple, address: str) -> Iterator[TaskResult]:
