@@ -23,12 +23,10 @@ def plot(
     demos: Annotated[Path | None, typer.Option(help="Demonstrations CSV to draw on the map.")] = None,
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
-    """Draw a result: posterior of β and of each θ_i, the map with the demonstrations, and
-    the belief after each action for --per-action results.
+    """Draw a result: posterior of β and of each θ_i, the map with the demonstrations, and the belief after each action for --per-action results.
 
-    Discrete results show the marginal probabilities as bars; birl and nuts show histograms
-    of the draws with the 90% credible interval; map shows its point estimate.
-    """
+    Discrete results show the marginal probabilities as bars; birl and nuts show histograms of the draws with the 90% credible interval; map shows its point estimate.
+    """  # noqa: E501  (one line per paragraph: the help text wraps it)
     from ..results import check_writable
     from ..worlds.result_plots import check_features, load_result, render_result_png
 

@@ -295,7 +295,9 @@ def draw_beta_marginal(ax: Axes, betas, probs, *, beta_true: float | None = None
     ax.set_xticks(x, [f"{v:g}" for v in b])
     ax.set_xlabel(r"expertise temperature $\beta$  (low = expert)", fontsize=8.5)
     ax.set_ylabel("probability", fontsize=8.5)
-    ax.set_ylim(0, max(1.0, float(p.max()) + 0.1))
+    # headroom above the tallest bar's label for the legend
+    ax.set_ylim(0, max(1.0, float(p.max()) + 0.1) * (1.2 if beta_true is not None else 1.0))
+    ax.set_yticks([t for t in (0, 0.2, 0.4, 0.6, 0.8, 1.0) if t <= ax.get_ylim()[1]])
     ax.set_title(title, fontsize=9.5)
     _tidy(ax)
     return ax
@@ -757,9 +759,11 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
     width = max(60, int((mw + 0.4) * 16))
     text = "\n".join(textwrap.fill(t, width) for t in notes)
     heights = [mh, 0.78, 0.2 + 0.15 * shown, 0.1 + 0.135 * (text.count("\n") + 1)]
-    fig = _new_figure((mw + 5.8, max(sum(heights) + 0.7, 7.6)))
+    fig_h = max(sum(heights) + 0.7, 7.6)
+    heights.append(max(fig_h - 0.7 - sum(heights), 0.01))  # spare height goes below the notes
+    fig = _new_figure((mw + 5.8, fig_h))
     sf_left, sf_right = fig.subfigures(1, 2, width_ratios=[mw + 0.4, 5.4], wspace=0.02)
-    left = sf_left.add_gridspec(4, 1, height_ratios=heights)
+    left = sf_left.add_gridspec(5, 1, height_ratios=heights)
     ax_map = sf_left.add_subplot(left[0])
     draw_map(ax_map, zm, legend=False)
     draw_visits(ax_map, zm, paths)

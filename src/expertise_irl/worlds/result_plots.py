@@ -188,14 +188,14 @@ def draw_discrete_component(ax: Axes, values, probs, name: str, *, mean: float |
     """Bars of P(θ_i = v) at the values v of the set (gid ``"marginal"`` on each bar)."""
     v, p = np.asarray(values, dtype=float), np.asarray(probs, dtype=float)
     gaps = np.diff(v)
-    width = min(0.06, 0.8 * float(gaps.min())) if gaps.size else 0.06
+    width = min(0.06, max(0.8 * float(gaps.min()), 0.012)) if gaps.size else 0.06
     bars = ax.bar(v, p, width=width, color=POST_COLOR, edgecolor="#2f4b7c", lw=0.5)
     for bar in bars:
         bar.set_gid("marginal")
     if mean is not None:
         ax.axvline(mean, color="#1a1a1a", lw=1.1, ls="--", gid="mean")
     if true is not None:
-        ax.axvline(true, color=POINT_COLOR, lw=1.3, gid="true")
+        ax.axvline(true, color=POINT_COLOR, lw=1.3, alpha=0.8, gid="true", zorder=0)
     lo, hi = min(0.0, float(v.min())), max(1.0, float(v.max()))
     ax.set_xlim(lo - 0.06, hi + 0.06)
     ax.set_ylim(0, max(float(p.max()) * 1.15, 0.05))
@@ -521,6 +521,8 @@ def result_figure(
         betas = doc["marginals"]["beta"]["values"]
         draw_trace(axs, trace, beta_true=beta_true, betas=betas)
 
+    if beta_true is not None or theta_true is not None:
+        subtitle += "; red = the truth (θ*, β*)"
     data = doc.get("data") if isinstance(doc.get("data"), dict) else {}
     what = ""
     if _is_num(data.get("episodes")) and _is_num(data.get("actions")):
