@@ -1,0 +1,140 @@
+"""Live commands: ``live`` (the tele-operation page) and ``next-start`` (active start choice)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ..errors import InputError
+from ._app import _load_mdp, _note, _progress, _say, _solve_progress, _warn, app, handles_errors
+
+THETAS_HELP = ("Θ: a preset (paper-sim, paper-real) or comma-separated component values; the unit-l1 "
+               "grid over all features is built from them.")
+BETAS_HELP = "B: a preset (paper-sim, paper-real) or comma-separated temperatures."
+
+
+def _hypotheses(thetas: str, betas: str, n_features: int):
+    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+
+    return HypothesisSet(resolve_thetas(thetas, n_features), resolve_betas(betas))
+
+
+@app.command()
+@handles_errors
+def live(
+    map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
+    thetas: Annotated[str, typer.Option(help=THETAS_HELP)] = "paper-real",
+    betas: Annotated[str, typer.Option(help=BETAS_HELP)] = "paper-sim",
+    out_dir: Annotated[Path, typer.Option(
+        "--out", help="Directory for demos.csv (every action, appended as it happens) and result.json "
+        "(rewritten after each episode); a directory that already holds demos.csv is resumed.")] = Path(
+        "expertise-irl-live"),
+    port: Annotated[int, typer.Option(min=0, max=65535, help="TCP port (0: any free port).")] = 8765,
+    host: Annotated[str, typer.Option(
+        help="Address to bind. The default, 127.0.0.1, is reachable from this machine only.")] = "127.0.0.1",
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the start choices (active and random).")] = 0,
+) -> None:
+    """Serve a local page where a person drives on the map and the estimate updates after every action.
+
+    Drive with the arrow keys or WASD (or the on-screen buttons). After each episode (it ends
+    at a goal) the robot picks the next start: the one whose episode is expected to tell the
+    most about θ and β, or a random one (a toggle on the page). Stop with Ctrl-C; run again
+    with the same --out to continue.
+    """
+    from ..live.server import bind, is_loopback, serve
+    from ..live.session import open_session
+    from ..worlds.zones import resolve_map
+    from .core import _map_digest
+
+    zone_map = resolve_map(map_spec)
+    mdp = zone_map.to_mdp()
+    hyp = _hypotheses(thetas, betas, mdp.n_features)
+    if not is_loopback(host):
+        _warn(f"--host {host}: the page is reachable from other machines; anyone who can reach it can "
+              "drive and read the estimate")
+    try:
+        sock = bind(host, port)
+    except OSError as exc:
+        why = exc.strerror or exc
+        raise InputError(f"--host {host} --port {port}: cannot listen there ({why})") from None
+    settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
+                "mdp_digest": _map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
+                "thetas": thetas, "betas": betas, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta,
+                "n_hypotheses": len(hyp), "prior": "uniform", "gamma": mdp.gamma, "seed": seed}
+    try:
+        with _progress() as bar:
+            session = open_session(zone_map, hyp, out_dir, settings=settings, seed=seed,
+                                   progress=_solve_progress(bar, "solving soft value iteration"))
+    except BaseException:
+        sock.close()
+        raise
+    est = session.estimator
+    if est.n_observed:
+        _note(f"resumed {est.n_episodes} episode(s), {est.n_observed} actions from {session.demos_path}")
+
+    def ready(url: str) -> None:
+        _say(f"live page: {url}  ({len(hyp)} hypotheses on {zone_map.name}; recording to {out_dir}; "
+             "Ctrl-C to stop)")
+        import sys
+
+        sys.stdout.flush()
+
+    serve(session, sock, on_ready=ready)
+    _say(f"stopped: {est.n_observed} actions in {session.demos_path}")
+
+
+@app.command("next-start")
+@handles_errors
+def next_start_cmd(
+    map_spec: Annotated[str | None, typer.Argument(
+        metavar="MAP", help="Map file or bundled map name.")] = None,
+    demos: Annotated[Path | None, typer.Option(
+        help="Demonstrations so far (CSV, episode,step,x,y or episode,step,state,action).")] = None,
+    mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
+    thetas: Annotated[str, typer.Option(help=THETAS_HELP)] = "paper-real",
+    betas: Annotated[str, typer.Option(help=BETAS_HELP)] = "paper-sim",
+    samples: Annotated[int, typer.Option(min=1, help="Simulated episodes per candidate start.")] = 48,
+    max_steps: Annotated[int, typer.Option(min=1, help="Length cap of a simulated episode.")] = 100,
+    candidates: Annotated[int, typer.Option(
+        min=1, help="At most this many candidate starts are scored (a seeded subsample).")] = 32,
+    target: Annotated[str, typer.Option(
+        help="joint: information about (θ, β); beta: about the expertise β only.")] = "joint",
+    seed: Annotated[int, typer.Option(min=0, help="Random seed (the answer is a function of it).")] = 0,
+) -> None:
+    """Pick the start whose next episode is expected to tell the most about θ and β.
+
+    Candidates are the map's start cells (S), or every non-goal cell if it has none. The
+    score of a start is the expected reduction of the posterior entropy (nats) after one
+    episode from it, estimated by simulating episodes under hypotheses drawn from the
+    posterior given --demos.
+    """
+    from ..demos import read_demos_csv
+    from ..inference.active import TARGETS, expected_information_gain
+    from ..inference.belief import DiscreteBelief
+
+    if demos is None:
+        raise InputError("--demos is required: the demonstrations observed so far (CSV)")
+    if target not in TARGETS:
+        raise InputError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
+    mdp, _ = _load_mdp(map_spec, mdp_path)
+    trajs = read_demos_csv(demos, mdp)
+    hyp = _hypotheses(thetas, betas, mdp.n_features)
+    with _progress() as bar:
+        prior = DiscreteBelief.from_mdp(mdp, hyp,
+                                        progress=_solve_progress(bar, "solving soft value iteration"))
+    post = prior.update(trajs)
+    sc = expected_information_gain(post, None, mdp, n_samples=samples, max_steps=max_steps,
+                                   max_candidates=candidates, target=target, rng=seed)
+    order = np.argsort(-sc.gain, kind="stable")
+    best = sc.best
+    i = int(np.searchsorted(sc.candidates, best))
+    where = mdp.describe_state(best)
+    scored = (f"{sc.candidates.size} of {sc.n_offered} candidate starts scored" if sc.n_offered >
+              sc.candidates.size else f"{sc.candidates.size} candidate starts")
+    _say(f"next start: {where}: expected information gain {sc.gain[i]:.3f} ± {sc.stderr[i]:.3f} nats "
+         f"({target}; entropy now {sc.entropy:.3f} nats; {scored})")
+    for j in order[:5]:
+        _say(f"  {mdp.describe_state(int(sc.candidates[j]))}: {sc.gain[j]:.3f} ± {sc.stderr[j]:.3f}")

@@ -1,0 +1,2 @@
+"""Live tele-operation: a local page where a person drives and the estimate updates after every
+action (:mod:`.session` holds the logic, :mod:`.server` the Starlette/uvicorn server)."""

@@ -1,0 +1,165 @@
+"""The local web server of the live page: Starlette (ASGI) + uvicorn, one WebSocket.
+
+Routes: ``/`` the page, ``/static/<file>`` its script and style (served only from this
+package's ``static`` folder; anything that resolves outside it is a 404), ``/ws`` the
+WebSocket. Every client message is a JSON object of at most :data:`MAX_MESSAGE`
+bytes, validated by :func:`~expertise_irl.live.session.validate_message`; a bad one
+gets ``{"type": "error", "message": ...}`` and the connection stays open. A page from
+another origin cannot open the socket, and with a loopback bind only loopback host
+names are answered (no DNS rebinding).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import json
+import socket
+from collections.abc import Callable
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from .session import LiveSession
+
+MAX_MESSAGE = 1024  # bytes; the largest real message is about 40
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1", "[::1]")
+
+
+def static_dir() -> Path:
+    """The package's own folder of page files."""
+    return Path(str(resources.files("expertise_irl") / "live" / "static"))
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def create_app(session: LiveSession, *, allowed_hosts: list[str] | None = None):
+    """The ASGI application serving ``session``. ``allowed_hosts`` (None: any) limits the Host
+    header answered."""
+    from starlette.applications import Starlette
+    from starlette.middleware import Middleware
+    from starlette.middleware.trustedhost import TrustedHostMiddleware
+    from starlette.responses import FileResponse, PlainTextResponse
+    from starlette.routing import Mount, Route, WebSocketRoute
+    from starlette.staticfiles import StaticFiles
+    from starlette.websockets import WebSocket, WebSocketDisconnect
+
+    folder = static_dir()
+    lock = asyncio.Lock()
+    clients: set[WebSocket] = set()
+
+    def headers(host: str) -> dict[str, str]:
+        return {
+            "Content-Security-Policy": (f"default-src 'self'; connect-src 'self' ws://{host}; "
+                                        "img-src 'self' data:; frame-ancestors 'none'"),
+            "X-Content-Type-Options": "nosniff",
+            "Referrer-Policy": "no-referrer",
+            "Cache-Control": "no-store",
+        }
+
+    async def index(request):
+        return FileResponse(folder / "index.html", headers=headers(request.headers.get("host", "")))
+
+    async def not_found(request):
+        return PlainTextResponse("not found", status_code=404)
+
+    async def send(ws: WebSocket, doc: dict[str, Any]) -> None:
+        await ws.send_text(json.dumps(doc, allow_nan=False))
+
+    async def ws_endpoint(ws: WebSocket) -> None:
+        origin = ws.headers.get("origin")
+        host = ws.headers.get("host", "")
+        if origin is not None and origin not in (f"http://{host}", f"https://{host}"):
+            await ws.close(code=1008)  # a page of another site may not drive the robot
+            return
+        await ws.accept()
+        clients.add(ws)
+        try:
+            async with lock:
+                await send(ws, session.static_message())
+            while True:
+                event = await ws.receive()
+                if event["type"] == "websocket.disconnect":
+                    break
+                text = event.get("text")
+                if text is None:
+                    await send(ws, {"type": "error", "message": "messages must be JSON text, not binary"})
+                    continue
+                if len(text.encode("utf-8", "replace")) > MAX_MESSAGE:
+                    await send(ws, {"type": "error",
+                                    "message": f"message too large (limit {MAX_MESSAGE} bytes)"})
+                    continue
+                try:
+                    msg = json.loads(text)
+                except ValueError:
+                    await send(ws, {"type": "error", "message": "malformed message: not valid JSON"})
+                    continue
+                async with lock:
+                    try:
+                        replies = await asyncio.to_thread(session.handle, msg)
+                    except Exception as exc:  # never let one message take the server down
+                        replies = [{"type": "error", "message": f"could not handle the message: {exc}"}]
+                for r in replies:
+                    if r["type"] == "state":  # every open page follows the same session
+                        for c in list(clients):
+                            try:
+                                await send(c, r)
+                            except Exception:
+                                clients.discard(c)
+                    else:
+                        await send(ws, r)
+        except WebSocketDisconnect:
+            pass
+        finally:
+            clients.discard(ws)
+
+    middleware = []
+    if allowed_hosts is not None:
+        middleware.append(Middleware(TrustedHostMiddleware, allowed_hosts=allowed_hosts))
+    routes = [
+        Route("/", index),
+        WebSocketRoute("/ws", ws_endpoint),
+        Mount("/static", app=StaticFiles(directory=folder, follow_symlink=False), name="static"),
+        Route("/{rest:path}", not_found),
+    ]
+    return Starlette(routes=routes, middleware=middleware)
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``host:port`` (port 0: any free port)."""
+    family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind((host.strip("[]"), port))
+    sock.listen(128)
+    sock.set_inheritable(True)
+    return sock
+
+
+def url_of(sock: socket.socket) -> str:
+    host, port = sock.getsockname()[:2]
+    shown = f"[{host}]" if ":" in host else host
+    return f"http://{shown}:{port}/"
+
+
+def serve(session: LiveSession, sock: socket.socket, *,
+          on_ready: Callable[[str], None] | None = None) -> None:
+    """Serve ``session`` on the bound ``sock`` until interrupted (Ctrl-C)."""
+    import uvicorn
+
+    host = sock.getsockname()[0]
+    allowed = [*LOOPBACK_NAMES] if is_loopback(host) else None
+    app = create_app(session, allowed_hosts=allowed)
+    config = uvicorn.Config(app, log_level="warning", lifespan="off", ws_max_size=64 * 1024,
+                            access_log=False)
+    server = uvicorn.Server(config)
+    if on_ready is not None:
+        on_ready(url_of(sock))
+    server.run(sockets=[sock])

@@ -1,0 +1,324 @@
+"""One live tele-operation session: the map, the online estimate, the recording, the next start.
+
+Everything the page shows and does goes through :meth:`LiveSession.handle`, which
+takes one decoded client message and returns the replies; the web server only
+moves JSON between the socket and this class. Nothing a client sends names a
+file: the session writes only ``DIR/demos.csv`` (every accepted action appended,
+flushed and synced as it happens, grid format ``episode,step,x,y``) and
+``DIR/result.json`` (the discrete-set result, rewritten atomically after every
+episode). Opening a session on a DIR that already holds ``demos.csv`` replays it,
+so the belief, the history and an episode cut short all resume.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..hypotheses import HypothesisSet
+from ..inference.active import expected_information_gain
+from ..inference.online import OnlineEstimator
+from ..worlds.zones import ACTION_NAMES, ZoneMap
+
+DEMOS_NAME = "demos.csv"
+RESULT_NAME = "result.json"
+MODES = ("active", "random")
+#: Accepted keys of each client message type (anything else is refused).
+MESSAGES: dict[str, tuple[str, ...]] = {
+    "move": ("type", "action"),
+    "mode": ("type", "mode"),
+    "sync": ("type",),
+}
+#: Key aliases the page sends; the server accepts only these action names.
+ACTIONS = {name: i for i, name in enumerate(ACTION_NAMES)}
+
+
+@dataclass
+class StartChoice:
+    """How the current episode's start was chosen, for the page."""
+
+    state: int
+    how: str  # "active", "random" or "resumed"
+    why: str
+    gain: float | None = None
+
+
+@dataclass
+class LiveSession:
+    """State of one session. Build with :func:`open_session`."""
+
+    zone_map: ZoneMap
+    estimator: OnlineEstimator
+    out_dir: Path
+    settings: dict[str, Any]
+    seed: int = 0
+    mode: str = "active"
+    n_samples: int = 48
+    history_beta: list[float] = field(default_factory=list)
+    history_entropy: list[float] = field(default_factory=list)
+    episode_starts: list[int] = field(default_factory=list)  # history index where each episode began
+    start: StartChoice | None = None
+    position: int = -1
+    starts_log: list[dict[str, Any]] = field(default_factory=list)
+
+    # ------------------------------------------------------------------ paths
+    @property
+    def demos_path(self) -> Path:
+        return self.out_dir / DEMOS_NAME
+
+    @property
+    def result_path(self) -> Path:
+        return self.out_dir / RESULT_NAME
+
+    @property
+    def mdp(self):
+        return self.estimator.mdp
+
+    def _xy(self, s: int) -> list[int]:
+        return [int(v) for v in self.mdp.state_xy[s]]
+
+    # ---------------------------------------------------------------- protocol
+    def handle(self, msg: Any) -> list[dict[str, Any]]:
+        """Replies to one decoded message (validated here; never raises for bad input)."""
+        why = validate_message(msg)
+        if why is not None:
+            return [{"type": "error", "message": why}]
+        kind = msg["type"]
+        if kind == "sync":
+            return [self.state_message()]
+        if kind == "mode":
+            self.mode = msg["mode"]
+            text = ("The robot will choose the next start (the most informative one)."
+                    if self.mode == "active" else "The next start will be drawn at random.")
+            return [self.state_message(message=text)]
+        return self.move(ACTIONS[msg["action"]])
+
+    def move(self, action: int) -> list[dict[str, Any]]:
+        s = self.position
+        nxt = int(self.mdp.next_state[s, action])
+        if nxt < 0:
+            name = ACTION_NAMES[action]
+            return [{"type": "refused", "action": name,
+                     "message": f"Cannot move {name}: a wall or the edge of the map is in the way. "
+                                "The move was not recorded."}]
+        first = not self.estimator.episode_open
+        est = self.estimator.observe(s, action)
+        e, t, _, _ = self.estimator._pairs[-1]
+        self._append_rows(e, t, s, nxt, first)
+        self.history_beta.append(est.beta_hat)
+        self.history_entropy.append(est.entropy)
+        self.position = nxt
+        if not self.mdp.terminal[nxt]:
+            return [self.state_message(event="moved")]
+        n_moves = t + 1
+        self.write_result()
+        self.choose_start()
+        self.episode_starts.append(len(self.history_beta))
+        text = (f"Goal reached in {n_moves} moves (episode {e + 1} done; saved to {RESULT_NAME}). "
+                f"{self.start.why}")
+        return [self.state_message(event="episode_done", message=text)]
+
+    # -------------------------------------------------------------- recording
+    def _append_rows(self, episode: int, step: int, s: int, nxt: int, first: bool) -> None:
+        rows = []
+        if first:
+            rows.append(f"{episode},{step},{self._xy(s)[0]},{self._xy(s)[1]}\n")
+        x, y = self._xy(nxt)
+        rows.append(f"{episode},{step + 1},{x},{y}\n")
+        new = not self.demos_path.exists() or self.demos_path.stat().st_size == 0
+        with open(self.demos_path, "a", encoding="utf-8", newline="") as fh:
+            if new:
+                fh.write("episode,step,x,y\n")
+            fh.write("".join(rows))
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    def write_result(self) -> None:
+        from ..results import discrete_result, write_json
+
+        trajs = self.estimator.trajectories()
+        doc = discrete_result(self.estimator.belief(), feature_names=self.mdp.feature_names,
+                              settings=self.settings,
+                              data={"episodes": trajs.n_episodes, "actions": len(trajs),
+                                    "demos": DEMOS_NAME})
+        doc["live"] = {"starts": self.starts_log, "episode_open": self.estimator.episode_open}
+        write_json(self.result_path, doc)
+
+    # ------------------------------------------------------------ start choice
+    def choose_start(self) -> StartChoice:
+        """Pick where the next episode starts (active or random, as the mode says)."""
+        cand = np.asarray(self.mdp.initial_states(), dtype=np.int64)
+        n_done = self.estimator.n_episodes
+        rng = np.random.default_rng([self.seed, n_done])  # the same choice after a restart
+        if cand.size == 1:
+            s = int(cand[0])
+            choice = StartChoice(s, self.mode, f"The next episode starts at {self._cell(s)}, the map's "
+                                 "only start cell.")
+        elif self.mode == "random":
+            s = int(rng.choice(cand))
+            choice = StartChoice(s, "random", f"Random start: {self._cell(s)}, drawn uniformly from "
+                                 f"{cand.size} possible starts (active choice is off).")
+        else:
+            sc = expected_information_gain(self.estimator, cand, n_samples=self.n_samples, rng=rng)
+            s = sc.best
+            g = float(sc.gain[np.searchsorted(sc.candidates, s)])
+            sampled = (f"{sc.candidates.size} of {sc.n_offered} possible starts"
+                       if sc.n_offered > sc.candidates.size else f"{sc.candidates.size} possible starts")
+            choice = StartChoice(
+                s, "active",
+                f"The robot chose {self._cell(s)}: an episode from there is expected to reduce the "
+                f"uncertainty about θ and β by {g:.2f} nats, the most of {sampled} "
+                f"(median {float(np.median(sc.gain)):.2f}).", gain=g)
+        self.start = choice
+        self.position = choice.state
+        self.starts_log.append({"episode": self._next_episode_label(), "xy": self._xy(choice.state),
+                                "how": choice.how, "expected_gain": choice.gain})
+        return choice
+
+    def _next_episode_label(self) -> int:
+        pairs = self.estimator._pairs
+        return pairs[-1][0] + 1 if pairs else 0
+
+    def _cell(self, s: int) -> str:
+        x, y = self._xy(s)
+        return f"cell (x={x}, y={y})"
+
+    # ---------------------------------------------------------------- messages
+    def static_message(self) -> dict[str, Any]:
+        """The map and its colours (sent once, when a page connects)."""
+        from ..worlds.render import ARROW_COLOR, GOAL_COLOR, GRID_COLOR, PATH_COLORS, ZONE_COLORS
+
+        return {
+            "type": "init",
+            "map": {"name": self.zone_map.name, "width": self.zone_map.width,
+                    "height": self.zone_map.height,
+                    "rows": ["".join(r) for r in self.zone_map.grid.tolist()]},
+            "colors": {"zones": ZONE_COLORS, "goal": GOAL_COLOR, "arrow": ARROW_COLOR,
+                       "grid": GRID_COLOR, "path": PATH_COLORS[0], "agent": PATH_COLORS[1]},
+            "feature_names": list(self.mdp.feature_names),
+            "n_hypotheses": len(self.estimator.hypotheses),
+            "actions": list(ACTION_NAMES),
+            "state": self.state_message(),
+        }
+
+    def state_message(self, *, event: str = "state", message: str | None = None) -> dict[str, Any]:
+        est = self.estimator.estimate
+        trajs_pairs = self.estimator._pairs
+        path = [self._xy(self.start.state if self.start else self.position)]
+        if self.estimator.episode_open:
+            e = trajs_pairs[-1][0]
+            ep = [p for p in trajs_pairs if p[0] == e]
+            path = [self._xy(p[2]) for p in ep] + [self._xy(self.position)]
+            episode, step = e, ep[-1][1] + 1
+        else:
+            episode, step = self._next_episode_label(), 0
+        return {
+            "type": "state",
+            "event": event,
+            "message": message,
+            "position": self._xy(self.position),
+            "path": path,
+            "episode": episode,
+            "step": step,
+            "episodes_done": self.estimator.n_episodes - int(self.estimator.episode_open),
+            "actions": self.estimator.n_observed,
+            "mode": self.mode,
+            "start": {"xy": self._xy(self.start.state), "how": self.start.how, "why": self.start.why}
+            if self.start else None,
+            "estimate": est.to_dict(self.mdp.feature_names),
+            "history": {"beta_hat": self.history_beta, "entropy": self.history_entropy,
+                        "episode_starts": self.episode_starts},
+        }
+
+
+def validate_message(msg: Any) -> str | None:
+    """Why a decoded client message is refused, or None."""
+    if not isinstance(msg, dict):
+        return "a message must be a JSON object"
+    kind = msg.get("type")
+    if not isinstance(kind, str) or kind not in MESSAGES:
+        return f"unknown message type {kind!r} (expected one of: {', '.join(MESSAGES)})"
+    extra = sorted(set(msg) - set(MESSAGES[kind]))
+    if extra:
+        return f"unexpected field(s) in a {kind!r} message: {', '.join(map(str, extra))}"
+    missing = [k for k in MESSAGES[kind] if k not in msg]
+    if missing:
+        return f"a {kind!r} message needs the field(s) {', '.join(missing)}"
+    if kind == "move" and (not isinstance(msg["action"], str) or msg["action"] not in ACTIONS):
+        return f"unknown action {msg['action']!r} (expected one of: {', '.join(ACTIONS)})"
+    if kind == "mode" and (not isinstance(msg["mode"], str) or msg["mode"] not in MODES):
+        return f"unknown mode {msg['mode']!r} (expected one of: {', '.join(MODES)})"
+    return None
+
+
+def open_session(zone_map: ZoneMap, hypotheses: HypothesisSet, out_dir: str | Path, *,
+                 settings: dict[str, Any] | None = None, seed: int = 0,
+                 progress: Callable[[int, int], None] | None = None,
+                 n_samples: int = 48) -> LiveSession:
+    """Solve the hypotheses on the map and open (or resume) the recording in ``out_dir``."""
+    from ..demos import read_demos_csv
+
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"{out_dir}: exists and is not a directory")
+    mdp = zone_map.to_mdp()
+    if mdp.n_actions != len(ACTION_NAMES):
+        raise InputError(f"{zone_map.name}: the live page needs a grid map with the four moves")
+    demos = out_dir / DEMOS_NAME
+    trajs = read_demos_csv(demos, mdp) if demos.is_file() and demos.stat().st_size > 0 else None
+    _check_same_map(out_dir / RESULT_NAME, settings or {})
+    out_dir.mkdir(parents=True, exist_ok=True)
+    est = OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
+    session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples)
+    if trajs is not None and len(trajs):
+        prior = est.belief()
+        est.feed(trajs)
+        trace = prior.trace(trajs)
+        session.history_beta = trace.mean_beta[1:].tolist()
+        session.history_entropy = trace.entropy[1:].tolist()
+        first = np.flatnonzero(np.append(True, trajs.episode[1:] != trajs.episode[:-1]))
+        session.episode_starts = first.tolist()
+        session.starts_log = _previous_starts(out_dir / RESULT_NAME)
+    if est.episode_open:
+        session.position = int(est.current_state)
+        s0 = int(est._pairs[[p[0] for p in est._pairs].index(est._pairs[-1][0])][2])
+        session.start = StartChoice(s0, "resumed", f"Resumed episode {est._pairs[-1][0] + 1} where it "
+                                    f"stopped, at {session._cell(session.position)}.")
+    else:
+        if trajs is not None and len(trajs):
+            session.episode_starts.append(len(session.history_beta))
+        session.choose_start()
+    if trajs is not None and len(trajs):
+        session.write_result()
+    return session
+
+
+def _check_same_map(result: Path, settings: dict[str, Any]) -> None:
+    import json
+
+    if not result.is_file() or "mdp_digest" not in settings:
+        return
+    try:
+        old = json.loads(result.read_text(encoding="utf-8")).get("settings", {})
+    except (OSError, ValueError, AttributeError):
+        return
+    digest = old.get("mdp_digest") if isinstance(old, dict) else None
+    if digest is not None and digest != settings["mdp_digest"]:
+        raise InputError(f"{result}: this directory was recorded on another map ({old.get('mdp')}); "
+                         "choose another --out")
+
+
+def _previous_starts(result: Path) -> list[dict[str, Any]]:
+    import json
+
+    try:
+        starts = json.loads(result.read_text(encoding="utf-8"))["live"]["starts"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return starts if isinstance(starts, list) else []

@@ -1,0 +1,215 @@
+// expertise-irl live page: draws the map and the estimate, sends moves over the WebSocket.
+// The page sends only {type: "move", action}, {type: "mode", mode} and {type: "sync"}.
+"use strict";
+(function () {
+  const KEYS = {
+    ArrowUp: "up", ArrowDown: "down", ArrowLeft: "left", ArrowRight: "right",
+    w: "up", s: "down", a: "left", d: "right", W: "up", S: "down", A: "left", D: "right",
+  };
+  const GROUPS = ["high", "medium", "low"];
+  let info = null;   // the init message: map, colours, feature names
+  let state = null;  // the last state message
+  let ws = null;
+
+  const $ = (id) => document.getElementById(id);
+
+  function send(doc) {
+    if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(doc));
+  }
+
+  function showMessage(text, kind) {
+    const el = $("message");
+    el.textContent = text || "";
+    el.className = "message" + (text ? " " + kind : "");
+  }
+
+  function connect() {
+    const proto = location.protocol === "https:" ? "wss://" : "ws://";
+    ws = new WebSocket(proto + location.host + "/ws");
+    ws.onmessage = (ev) => {
+      const msg = JSON.parse(ev.data);
+      if (msg.type === "init") {
+        info = msg;
+        render(msg.state);
+      } else if (msg.type === "state") {
+        render(msg);
+        if (msg.message) showMessage(msg.message, "info");
+        else if (msg.event === "moved") showMessage("", "");
+      } else if (msg.type === "refused") {
+        showMessage(msg.message, "refused");
+      } else if (msg.type === "error") {
+        showMessage("Error: " + msg.message, "refused");
+      }
+    };
+    ws.onclose = () => { $("status").textContent = "disconnected — is the server still running? Reload to reconnect."; };
+  }
+
+  // ---------------------------------------------------------------- map
+  function cellSize() {
+    const m = info.map;
+    return Math.max(8, Math.floor(Math.min(640 / m.width, 520 / m.height, 56)));
+  }
+
+  function drawMap() {
+    const m = info.map, c = info.colors, cs = cellSize();
+    const canvas = $("map"), dpr = window.devicePixelRatio || 1;
+    const W = m.width * cs, H = m.height * cs;
+    if (canvas.width !== Math.round(W * dpr)) {
+      canvas.width = Math.round(W * dpr); canvas.height = Math.round(H * dpr);
+      canvas.style.width = W + "px"; canvas.style.height = H + "px";
+    }
+    const g = canvas.getContext("2d");
+    g.setTransform(dpr, 0, 0, dpr, 0, 0);
+    const arrows = { ">": [1, 0], "<": [-1, 0], "^": [0, -1], "v": [0, 1] };
+    for (let y = 0; y < m.height; y++) {
+      for (let x = 0; x < m.width; x++) {
+        const ch = m.rows[y][x];
+        g.fillStyle = c.zones[ch] || "#fafafa";
+        g.fillRect(x * cs, y * cs, cs, cs);
+      }
+    }
+    g.strokeStyle = c.grid; g.lineWidth = 0.6;
+    g.beginPath();
+    for (let x = 0; x <= m.width; x++) { g.moveTo(x * cs + 0.5, 0); g.lineTo(x * cs + 0.5, H); }
+    for (let y = 0; y <= m.height; y++) { g.moveTo(0, y * cs + 0.5); g.lineTo(W, y * cs + 0.5); }
+    g.stroke();
+    for (let y = 0; y < m.height; y++) {
+      for (let x = 0; x < m.width; x++) {
+        const ch = m.rows[y][x], cx = (x + 0.5) * cs, cy = (y + 0.5) * cs;
+        if (arrows[ch]) {
+          const [dx, dy] = arrows[ch], r = cs * 0.28;
+          g.fillStyle = c.arrow; g.beginPath();
+          g.moveTo(cx + dx * r, cy + dy * r);
+          g.lineTo(cx - dx * r - dy * r * 0.8, cy - dy * r + dx * r * 0.8);
+          g.lineTo(cx - dx * r + dy * r * 0.8, cy - dy * r - dx * r * 0.8);
+          g.closePath(); g.fill();
+        } else if (ch === "G") {
+          g.fillStyle = c.goal; g.beginPath(); g.arc(cx, cy, cs * 0.32, 0, 2 * Math.PI); g.fill();
+        } else if (ch === "S") {
+          g.strokeStyle = "#6b6b6b"; g.lineWidth = 1;
+          g.strokeRect(cx - cs * 0.27, cy - cs * 0.27, cs * 0.54, cs * 0.54);
+        }
+      }
+    }
+    if (!state) return;
+    const path = state.path;
+    const px = (p) => (p[0] + 0.5) * cs, py = (p) => (p[1] + 0.5) * cs;
+    if (path.length > 0) {  // the start of this episode
+      g.strokeStyle = c.path; g.lineWidth = 2;
+      g.strokeRect(px(path[0]) - cs * 0.36, py(path[0]) - cs * 0.36, cs * 0.72, cs * 0.72);
+    }
+    if (path.length > 1) {
+      g.strokeStyle = c.path; g.lineWidth = Math.max(2, cs * 0.12); g.lineJoin = "round"; g.lineCap = "round";
+      g.beginPath(); g.moveTo(px(path[0]), py(path[0]));
+      for (const p of path.slice(1)) g.lineTo(px(p), py(p));
+      g.stroke();
+    }
+    const a = state.position;
+    g.fillStyle = c.agent; g.strokeStyle = "#fff"; g.lineWidth = 2;
+    g.beginPath(); g.arc(px(a), py(a), cs * 0.34, 0, 2 * Math.PI); g.fill(); g.stroke();
+  }
+
+  // --------------------------------------------------------------- panels
+  function bars(el, rows, cls) {
+    el.replaceChildren();
+    for (const [label, p, extra] of rows) {
+      const l = document.createElement("div"); l.className = "label"; l.textContent = label;
+      const t = document.createElement("div"); t.className = "track";
+      const f = document.createElement("div"); f.className = "fill " + (extra || cls || "");
+      f.style.width = (100 * Math.max(0, Math.min(1, p))).toFixed(1) + "%"; t.appendChild(f);
+      const v = document.createElement("div"); v.className = "value";
+      v.textContent = (100 * p).toFixed(p < 0.001 && p > 0 ? 2 : 1) + "%";
+      el.append(l, t, v);
+    }
+  }
+
+  function fmtBeta(b) { return b >= 1 ? b.toPrecision(3) : String(+b.toPrecision(2)); }
+
+  function drawHistory() {
+    const canvas = $("history"), dpr = window.devicePixelRatio || 1;
+    const W = 440, H = 170;
+    if (canvas.width !== W * dpr) {
+      canvas.width = W * dpr; canvas.height = H * dpr; canvas.style.width = W + "px"; canvas.style.height = H + "px";
+    }
+    const g = canvas.getContext("2d");
+    g.setTransform(dpr, 0, 0, dpr, 0, 0);
+    g.clearRect(0, 0, W, H);
+    const L = 44, R = 36, T = 8, B = 22, w = W - L - R, h = H - T - B;
+    const est = state.estimate, hist = state.history;
+    const bv = est.beta_values, lo = Math.log(Math.min(...bv)), hi = Math.log(Math.max(...bv));
+    const emax = Math.log(info.n_hypotheses) || 1;
+    const n = hist.beta_hat.length;
+    const X = (i) => L + (n <= 1 ? w * i : (w * i) / n);
+    const Yb = (b) => T + h - (h * (Math.log(b) - lo)) / ((hi - lo) || 1);
+    const Ye = (e) => T + h - (h * e) / emax;
+    g.strokeStyle = "#cfd4da"; g.lineWidth = 1; g.strokeRect(L, T, w, h);
+    g.fillStyle = "#66717d"; g.font = "10px system-ui, sans-serif"; g.textAlign = "right"; g.textBaseline = "middle";
+    for (const b of bv) {
+      g.fillText(fmtBeta(b), L - 4, Yb(b));
+      g.strokeStyle = "#eef0f3"; g.beginPath(); g.moveTo(L, Yb(b)); g.lineTo(L + w, Yb(b)); g.stroke();
+    }
+    g.textAlign = "left";
+    g.fillText("0", L + w + 4, Ye(0)); g.fillText(emax.toFixed(1), L + w + 4, Ye(emax));
+    g.textAlign = "center"; g.textBaseline = "top";
+    g.fillText("actions: " + n, L + w / 2, T + h + 6);
+    g.setLineDash([3, 3]); g.strokeStyle = "#999";
+    for (const i of hist.episode_starts) {
+      if (i > 0 && i < n) { g.beginPath(); g.moveTo(X(i), T); g.lineTo(X(i), T + h); g.stroke(); }
+    }
+    g.setLineDash([]);
+    const line = (vals, Y, colour) => {  // value k is the estimate after action k + 1
+      g.strokeStyle = colour; g.lineWidth = 1.8; g.beginPath();
+      vals.forEach((v, k) => { if (k === 0) g.moveTo(X(k + 1), Y(v)); else g.lineTo(X(k + 1), Y(v)); });
+      g.stroke();
+      if (vals.length === 1) { g.fillStyle = colour; g.fillRect(X(1) - 2, Y(vals[0]) - 2, 4, 4); }
+    };
+    if (n > 0) {
+      line(hist.beta_hat, Yb, "#0b2e59");
+      line(hist.entropy, Ye, "#d9480f");
+    }
+  }
+
+  function render(s) {
+    state = s;
+    const est = s.estimate;
+    $("beta-hat").textContent = est.beta_hat.toPrecision(4);
+    $("group").textContent = est.expertise_group + " expertise";
+    $("entropy").textContent = "posterior entropy " + est.entropy.toFixed(3) + " nats of " +
+      Math.log(info.n_hypotheses).toFixed(2) + " (" + info.n_hypotheses + " hypotheses)";
+    bars($("beta-bars"), est.beta_values.map((b, i) => ["β = " + fmtBeta(b), est.beta_probabilities[i]]));
+    bars($("group-bars"), GROUPS.map((k) => [k, est.group_probabilities[k], "group-" + k]));
+    bars($("theta-bars"), info.feature_names.map((f, i) => [f, est.theta_hat[i]]), "theta");
+    $("status").innerHTML = "";
+    const parts = [
+      ["map", info.map.name], ["episode", s.episode + 1], ["step", s.step],
+      ["actions recorded", s.actions], ["episodes done", s.episodes_done],
+    ];
+    for (const [k, v] of parts) {
+      const span = document.createElement("span");
+      span.id = k === "actions recorded" ? "actions" : k === "episodes done" ? "episodes-done" : k.replace(" ", "-");
+      span.dataset.value = String(v);
+      span.textContent = k + " " + v + "   ";
+      $("status").appendChild(span);
+    }
+    $("active").checked = s.mode === "active";
+    $("start").textContent = s.start ? s.start.why : "";
+    drawMap();
+    drawHistory();
+  }
+
+  // --------------------------------------------------------------- input
+  document.addEventListener("keydown", (ev) => {
+    if (ev.ctrlKey || ev.metaKey || ev.altKey) return;
+    const action = KEYS[ev.key];
+    if (!action) return;
+    ev.preventDefault();
+    send({ type: "move", action: action });
+  });
+  document.addEventListener("DOMContentLoaded", () => {
+    for (const b of document.querySelectorAll(".pad button")) {
+      b.addEventListener("click", () => send({ type: "move", action: b.dataset.action }));
+    }
+    $("active").addEventListener("change", (ev) => send({ type: "mode", mode: ev.target.checked ? "active" : "random" }));
+    connect();
+  });
+})();
