@@ -45,13 +45,18 @@ def live(
     with the same --out to continue.
     """
     from ..live.server import bind, is_loopback, serve
-    from ..live.session import open_session
+    from ..live.session import check_out_dir, open_session
     from ..worlds.zones import resolve_map
     from .core import _map_digest
 
     zone_map = resolve_map(map_spec)
     mdp = zone_map.to_mdp()
     hyp = _hypotheses(thetas, betas, mdp.n_features)
+    settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
+                "mdp_digest": _map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
+                "thetas": thetas, "betas": betas, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta,
+                "n_hypotheses": len(hyp), "prior": "uniform", "gamma": mdp.gamma, "seed": seed}
+    check_out_dir(zone_map, out_dir, settings)  # before the solve: a bad DIR fails at once
     if not is_loopback(host):
         _warn(f"--host {host}: the page is reachable from other machines; anyone who can reach it can "
               "drive and read the estimate")
@@ -60,10 +65,6 @@ def live(
     except OSError as exc:
         why = exc.strerror or exc
         raise InputError(f"--host {host} --port {port}: cannot listen there ({why})") from None
-    settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
-                "mdp_digest": _map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
-                "thetas": thetas, "betas": betas, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta,
-                "n_hypotheses": len(hyp), "prior": "uniform", "gamma": mdp.gamma, "seed": seed}
     try:
         with _progress() as bar:
             session = open_session(zone_map, hyp, out_dir, settings=settings, seed=seed,

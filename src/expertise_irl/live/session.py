@@ -262,17 +262,9 @@ def open_session(zone_map: ZoneMap, hypotheses: HypothesisSet, out_dir: str | Pa
                  progress: Callable[[int, int], None] | None = None,
                  n_samples: int = 48) -> LiveSession:
     """Solve the hypotheses on the map and open (or resume) the recording in ``out_dir``."""
-    from ..demos import read_demos_csv
-
     out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"{out_dir}: exists and is not a directory")
     mdp = zone_map.to_mdp()
-    if mdp.n_actions != len(ACTION_NAMES):
-        raise InputError(f"{zone_map.name}: the live page needs a grid map with the four moves")
-    demos = out_dir / DEMOS_NAME
-    trajs = read_demos_csv(demos, mdp) if demos.is_file() and demos.stat().st_size > 0 else None
-    _check_same_map(out_dir / RESULT_NAME, settings or {})
+    trajs = check_out_dir(zone_map, out_dir, settings)
     out_dir.mkdir(parents=True, exist_ok=True)
     est = OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
     session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples)
@@ -297,6 +289,24 @@ def open_session(zone_map: ZoneMap, hypotheses: HypothesisSet, out_dir: str | Pa
     if trajs is not None and len(trajs):
         session.write_result()
     return session
+
+
+def check_out_dir(zone_map: ZoneMap, out_dir: str | Path, settings: dict[str, Any] | None = None):
+    """Check that ``out_dir`` can hold (or resume) a recording on ``zone_map`` before any work is
+    done; returns the demonstrations already recorded there (or None)."""
+    from ..demos import read_demos_csv
+
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"{out_dir}: exists and is not a directory")
+    if not out_dir.exists() and not out_dir.parent.is_dir():
+        raise InputError(f"{out_dir.parent}: output directory does not exist")
+    mdp = zone_map.to_mdp()
+    if mdp.n_actions != len(ACTION_NAMES) or mdp.state_xy is None:
+        raise InputError(f"{zone_map.name}: the live page needs a grid map with the four moves")
+    _check_same_map(out_dir / RESULT_NAME, settings or {})
+    demos = out_dir / DEMOS_NAME
+    return read_demos_csv(demos, mdp) if demos.is_file() and demos.stat().st_size > 0 else None
 
 
 def _check_same_map(result: Path, settings: dict[str, Any]) -> None:

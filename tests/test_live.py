@@ -1,0 +1,272 @@
+"""The live server in-process: WebSocket protocol (good and bad messages), recording and resume,
+static files confined to the package, origin and host checks; the ``live`` and ``next-start``
+commands."""
+
+from __future__ import annotations
+
+import json
+from collections import deque
+
+import pytest
+from starlette.testclient import TestClient
+from test_cli import assert_input_error, invoke, ok
+
+from expertise_irl.demos import read_demos_csv
+from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
+from expertise_irl.inference.belief import DiscreteBelief
+from expertise_irl.live.server import LOOPBACK_NAMES, MAX_MESSAGE, create_app
+from expertise_irl.live.session import open_session
+from expertise_irl.worlds.zones import ACTION_NAMES, parse_map
+
+MAP = """\
+.....
+.xx..
+...>G
+"""
+BASE = "http://127.0.0.1:8765"
+WS = "ws://127.0.0.1:8765/ws"
+
+
+@pytest.fixture(scope="module")
+def zone_map():
+    return parse_map(MAP, name="small")
+
+
+@pytest.fixture(scope="module")
+def hyp():
+    return HypothesisSet(theta_grid((0.0, 1.0), 5), BETA_PRESETS["paper-sim"])
+
+
+def make(zone_map, hyp, out, **kw):
+    session = open_session(zone_map, hyp, out, settings={"command": "live", "mdp_digest": "sha256:x"}, **kw)
+    client = TestClient(create_app(session, allowed_hosts=list(LOOPBACK_NAMES)), base_url=BASE)
+    return session, client
+
+
+def path_to_goal(mdp, s: int) -> list[int]:
+    """Actions of a shortest path from state s to a goal (BFS)."""
+    prev = {s: None}
+    queue = deque([s])
+    while queue:
+        u = queue.popleft()
+        if mdp.terminal[u]:
+            actions = []
+            while prev[u] is not None:
+                p, a = prev[u]
+                actions.append(a)
+                u = p
+            return actions[::-1]
+        for a in range(mdp.n_actions):
+            v = int(mdp.next_state[u, a])
+            if v >= 0 and v not in prev:
+                prev[v] = (u, a)
+                queue.append(v)
+    raise AssertionError("no path")
+
+
+def move(ws, action: str) -> dict:
+    ws.send_text(json.dumps({"type": "move", "action": action}))
+    return ws.receive_json()
+
+
+def test_protocol_moves_update_the_estimate_and_the_recording(tmp_path, zone_map, hyp):
+    session, client = make(zone_map, hyp, tmp_path)
+    mdp = session.mdp
+    with client.websocket_connect(WS) as ws:
+        init = ws.receive_json()
+        assert init["type"] == "init"
+        assert init["map"]["rows"] == MAP.splitlines()
+        assert init["feature_names"] == list(mdp.feature_names)
+        assert init["colors"]["goal"] and init["colors"]["zones"]["x"]
+        state = init["state"]
+        assert state["actions"] == 0 and state["start"]["how"] == "active"
+        assert "expected to reduce the uncertainty" in state["start"]["why"]
+        s = int(session.position)
+        prior = DiscreteBelief.from_log_policy(hyp, session.estimator.belief().log_policy)
+        pairs = []
+        for a in path_to_goal(mdp, s)[:-1]:  # stop one move short of the goal
+            r = move(ws, ACTION_NAMES[a])
+            pairs.append((s, a))
+            s = int(mdp.next_state[s, a])
+            assert r["type"] == "state" and r["event"] == "moved"
+            assert r["position"] == mdp.state_xy[s].tolist()
+            assert r["actions"] == len(pairs) and len(r["history"]["beta_hat"]) == len(pairs)
+            ref = prior.update_pairs(*zip(*pairs, strict=True))
+            assert r["estimate"]["beta_hat"] == pytest.approx(ref.mean_beta, abs=1e-12)
+            assert r["estimate"]["entropy"] == pytest.approx(ref.entropy, abs=1e-12)
+            assert len(r["estimate"]["beta_probabilities"]) == hyp.n_beta
+            assert r["path"][-1] == r["position"] and len(r["path"]) == len(pairs) + 1
+    trajs = read_demos_csv(tmp_path / "demos.csv", mdp)  # on disk, in the project's format
+    assert list(zip(trajs.state.tolist(), trajs.action.tolist(), strict=True)) == pairs
+    assert not (tmp_path / "result.json").exists()  # written after an episode, none has ended
+
+
+def test_wall_is_refused_and_not_recorded(tmp_path, zone_map, hyp):
+    session, client = make(zone_map, hyp, tmp_path)
+    mdp = session.mdp
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        s = session.position
+        blocked = [a for a in range(4) if mdp.next_state[s, a] < 0]
+        assert blocked, "the start should be on the edge of this small map"
+        r = move(ws, ACTION_NAMES[blocked[0]])
+        assert r["type"] == "refused" and "not recorded" in r["message"]
+        assert session.estimator.n_observed == 0 and session.position == s
+        assert not (tmp_path / "demos.csv").exists()
+
+
+@pytest.mark.parametrize("raw, fragment", [
+    ("{not json", "not valid JSON"),
+    ("[1, 2]", "JSON object"),
+    ('{"type": "teleport"}', "unknown message type"),
+    ('{"action": "up"}', "unknown message type"),
+    ('{"type": "move", "action": "jump"}', "unknown action"),
+    ('{"type": "move", "action": 3}', "unknown action"),
+    ('{"type": "move"}', "needs the field"),
+    ('{"type": "move", "action": "up", "path": "../../etc/passwd"}', "unexpected field"),
+    ('{"type": "mode", "mode": "greedy"}', "unknown mode"),
+    ('{"type": "sync", "file": "result.json"}', "unexpected field"),
+    ('{"type": "move", "action": "' + "u" * MAX_MESSAGE + '"}', "too large"),
+])
+def test_bad_messages_get_an_error_and_the_connection_survives(tmp_path, zone_map, hyp, raw, fragment):
+    session, client = make(zone_map, hyp, tmp_path)
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        ws.send_text(raw)
+        r = ws.receive_json()
+        assert r["type"] == "error" and fragment in r["message"], r
+        ws.send_bytes(b"\x00\x01")
+        assert ws.receive_json()["type"] == "error"
+        ws.send_text('{"type": "sync"}')
+        assert ws.receive_json()["type"] == "state"  # still served
+    assert session.estimator.n_observed == 0
+
+
+def test_episode_end_writes_result_and_picks_the_next_start(tmp_path, zone_map, hyp):
+    session, client = make(zone_map, hyp, tmp_path)
+    mdp = session.mdp
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        for episode, mode in enumerate(("active", "random")):
+            ws.send_text(json.dumps({"type": "mode", "mode": mode}))
+            assert ws.receive_json()["mode"] == mode
+            for a in path_to_goal(mdp, session.position):
+                r = move(ws, ACTION_NAMES[a])
+            assert r["event"] == "episode_done" and "Goal reached" in r["message"]
+            assert r["episodes_done"] == episode + 1 and r["step"] == 0
+            assert r["start"]["how"] == mode and r["path"] == [r["position"]]
+            doc = json.loads((tmp_path / "result.json").read_text())
+            assert doc["data"]["episodes"] == episode + 1 and doc["data"]["actions"] == r["actions"]
+            assert doc["beta_hat"] == pytest.approx(r["estimate"]["beta_hat"])
+            # The toggle decides the *next* start; both recorded starts were chosen while active.
+            assert [d["how"] for d in doc["live"]["starts"]] == ["active"] * (episode + 1)
+        assert "drawn uniformly" in r["start"]["why"]
+    trajs = read_demos_csv(tmp_path / "demos.csv", mdp)
+    assert trajs.n_episodes == 2 and len(trajs) == session.estimator.n_observed
+
+
+def test_killed_mid_episode_resumes_from_disk(tmp_path, zone_map, hyp):
+    session, client = make(zone_map, hyp, tmp_path)
+    mdp = session.mdp
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        for a in path_to_goal(mdp, session.position):
+            move(ws, ACTION_NAMES[a])
+        s = session.position
+        todo = path_to_goal(mdp, s)
+        assert len(todo) >= 2
+        move(ws, ACTION_NAMES[todo[0]])  # episode 2 is cut off after one move
+    expected = session.estimator.estimate
+    del session, client  # the server is gone; only the files remain
+    again, client = make(zone_map, hyp, tmp_path)
+    est = again.estimator
+    assert est.n_observed == expected.n_observed and est.episode_open
+    assert est.estimate.beta_hat == pytest.approx(expected.beta_hat, abs=1e-12)
+    assert again.position == int(mdp.next_state[s, todo[0]])
+    assert again.start.how == "resumed"
+    assert len(again.history_beta) == est.n_observed
+    with client.websocket_connect(WS) as ws:
+        state = ws.receive_json()["state"]
+        assert state["episode"] == 1 and state["step"] == 1 and len(state["path"]) == 2
+        for a in todo[1:]:
+            r = move(ws, ACTION_NAMES[a])
+        assert r["event"] == "episode_done"
+    trajs = read_demos_csv(tmp_path / "demos.csv", mdp)
+    assert trajs.n_episodes == 2 and trajs.episodes()[1][1].tolist() == todo
+
+
+def test_resume_refuses_a_directory_of_another_map(tmp_path, zone_map, hyp):
+    (tmp_path / "result.json").write_text(json.dumps({"settings": {"mdp_digest": "sha256:other"}}))
+    with pytest.raises(Exception, match="recorded on another map"):
+        make(zone_map, hyp, tmp_path)
+
+
+def test_static_files_only_from_the_package(tmp_path, zone_map, hyp):
+    _, client = make(zone_map, hyp, tmp_path)
+    r = client.get("/")
+    assert r.status_code == 200 and "<canvas id=\"map\"" in r.text
+    assert "default-src 'self'" in r.headers["content-security-policy"]
+    assert "http" not in r.text.replace("http-equiv", "")  # no CDN, nothing from the network
+    for name in ("live.js", "live.css"):
+        assert client.get(f"/static/{name}").status_code == 200
+    for path in ("/static/../session.py", "/static/..%2fsession.py", "/static/%2e%2e/%2e%2e/cli/core.py",
+                 "/static/..%2f..%2f..%2f..%2fpyproject.toml", "/static//etc/passwd", "/../server.py",
+                 "/static/%2e%2e%5cserver.py", "/demos.csv", "/result.json"):
+        r = client.get(path)
+        assert r.status_code == 404, path
+        assert "import" not in r.text and "root:" not in r.text
+
+
+def test_other_origins_and_hosts_are_refused(tmp_path, zone_map, hyp):
+    from starlette.websockets import WebSocketDisconnect
+
+    _, client = make(zone_map, hyp, tmp_path)
+    with pytest.raises(WebSocketDisconnect):
+        with client.websocket_connect(WS, headers={"origin": "http://evil.example"}) as ws:
+            ws.receive_json()
+    with client.websocket_connect(WS, headers={"origin": BASE}) as ws:
+        assert ws.receive_json()["type"] == "init"
+    assert client.get("/", headers={"host": "evil.example"}).status_code == 400
+
+
+# ------------------------------------------------------------------------- commands
+def test_live_command_prints_its_url_and_warns_off_loopback(tmp_path, monkeypatch):
+    import expertise_irl.live.server as server
+
+    served = []
+    monkeypatch.setattr(server, "serve", lambda session, sock, on_ready: (
+        served.append(sock.getsockname()), on_ready(server.url_of(sock)), sock.close()))
+    r = invoke("live", "corridor", "--thetas", "0,1", "--out", tmp_path / "rec", "--port", 0)
+    ok(r)
+    host, port = served[0][:2]
+    assert host == "127.0.0.1" and f"live page: http://127.0.0.1:{port}/" in r.stdout
+    assert "warning" not in r.stderr
+    r = invoke("live", "corridor", "--thetas", "0,1", "--out", tmp_path / "rec", "--port", 0,
+               "--host", "0.0.0.0")
+    ok(r)
+    assert "reachable from other machines" in r.stderr
+
+
+def test_live_command_bad_input(tmp_path):
+    (tmp_path / "file").write_text("x")
+    assert_input_error(invoke("live", "corridor", "--out", tmp_path / "file", "--port", 0), "not a directory")
+    assert_input_error(invoke("live", "nosuchmap", "--port", 0), "nosuchmap")
+    assert_input_error(invoke("live", "corridor", "--betas", "0,1", "--port", 0), "--betas")
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    (rec / "demos.csv").write_text("episode,step,x,y\n0,0,0,0\n0,1,5,5\n")  # a jump: not resumable
+    assert_input_error(invoke("live", "corridor", "--out", rec, "--port", 0), "demos.csv", "jumps")
+
+
+def test_next_start_command(tmp_path):
+    demos = tmp_path / "demos.csv"
+    ok(invoke("simulate", "crossroads", "--theta", "1,1,0,0,0", "--beta", "0.5", "--episodes", 2,
+              "--out", demos))
+    args = ("next-start", "crossroads", "--demos", demos, "--thetas", "0,1", "--samples", 16,
+            "--candidates", 8, "--seed", 3)
+    a, b = invoke(*args), invoke(*args)
+    ok(a)
+    assert a.stdout == b.stdout and a.stdout.startswith("next start: state ")
+    assert "expected information gain" in a.stdout and "8 of" in a.stdout
+    assert_input_error(invoke("next-start", "crossroads"), "--demos")
+    assert_input_error(invoke(*args, "--target", "theta"), "--target")
