@@ -267,3 +267,6 @@ def test_manifest_records_the_sweep(reference):
     assert m["task_keys"] == [t.key for t in STUDY.tasks(SMOKE)]
     toml = tomllib.loads((out / "config.toml").read_text())["conditions"]
     assert toml == m["config"]
+    runs = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
+    assert runs and runs[0]["engine"] == "local" and runs[0]["workers"] == 1
+    assert runs[0]["tasks_to_run"] == len(m["task_keys"]) and "numpy" in runs[0]["versions"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Annotated
 
@@ -49,7 +48,7 @@ def run_cmd(
     """Run a sweep, or resume it: finished tasks are skipped, each task's rows land in one shard."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..experiments.engine import run
+    from ..experiments.engine import cores, run
     from ..experiments.studies import get_study
 
     st = get_study(study)
@@ -66,7 +65,7 @@ def run_cmd(
         state["rows"] += rows
         bar.update(state["task"], advance=1, rows=state["rows"])
 
-    where = f"Dask scheduler {scheduler}" if scheduler else f"{workers or os.cpu_count()} local worker(s)"
+    where = f"Dask scheduler {scheduler}" if scheduler else f"{workers or cores()} local worker(s)"
     with bar:
         summary = run(st, out, scale=scale, seed=seed, workers=workers, scheduler=scheduler,
                       retry_failed=retry_failed, on_start=on_start, on_result=on_result)
@@ -85,10 +84,10 @@ def status_cmd(
     out: Annotated[Path, typer.Argument(help="Sweep directory.")],
 ) -> None:
     """Tasks done / total / failed, rows, time spent and an estimate of the time left."""
-    from ..experiments.engine import status
+    from ..experiments.engine import cores, status
 
     s = status(out)
-    cores = os.cpu_count() or 1
+    n = cores()
     _say(f"{s.study} (scale {s.scale}, seed {s.seed}) in {out}")
     _say(f"tasks: {s.done} done / {s.total} total, {s.failed} failed, {s.remaining} to do")
     _say(f"rows: {s.rows}")
@@ -96,7 +95,7 @@ def status_cmd(
     _say(f"time spent: {_duration(s.time_spent_s)} of task time{mean}")
     if s.remaining:
         _say(f"estimated time left: {_duration(s.eta_s(1))} with 1 worker, "
-             f"{_duration(s.eta_s(cores))} with {cores}")
+             f"{_duration(s.eta_s(n))} with {n}")
     for key, message in s.failures:
         _say(f"failed: {key}: {message}")
 
@@ -107,10 +106,11 @@ def list_cmd() -> None:
     """Studies and their scales: tasks, instances, rows, solves, and an estimated time here."""
     from rich.table import Table
 
+    from ..experiments.engine import cores
     from ..experiments.studies import studies
 
-    cores = os.cpu_count() or 1
-    table = Table(title=f"studies (estimated time with {cores} local workers on this machine)")
+    n = cores()
+    table = Table(title=f"studies (estimated time with {n} local workers on this machine)")
     for name in ("study", "scale", "tasks", "instances", "rows", "set solves (grouped / ungrouped)",
                  "estimated time"):
         table.add_column(name, justify="left" if name in ("study", "scale") else "right")
@@ -118,7 +118,7 @@ def list_cmd() -> None:
         for scale, cfg in st.scales.items():
             c = st.counts(cfg)
             tasks = st.tasks(cfg)
-            est = STARTUP_S + sum(t.estimate_s for t in tasks) / min(cores, len(tasks))
+            est = STARTUP_S + sum(t.estimate_s for t in tasks) / min(n, len(tasks))
             table.add_row(st.name, scale, str(len(tasks)), str(c.get("instances", "")),
                           str(c.get("rows", "")),
                           f"{c.get('set_solves_grouped', '')} / {c.get('set_solves_ungrouped', '')}",

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .store import LAYOUT_VERSION, Store, config_hash, machine, to_toml, versions
+from .store import LAYOUT_VERSION, Store, config_hash, machine, to_toml, versions, write_atomic
 
 #: Environment variable read by the engine to inject faults (tests only); see :func:`_faults`.
 FAULTS_ENV = "EXPERTISE_IRL_FAULTS"
@@ -41,6 +41,14 @@ LOCAL_ATTEMPTS = 3
 #: Dask ``retries`` for every task.
 DASK_RETRIES = 2
 SCALES = ("smoke", "small", "paper")
+
+
+def cores() -> int:
+    """CPU cores this process may use (the default number of local workers)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 
 def seed_sequence(seed: int, identity) -> np.random.SeedSequence:
@@ -326,6 +334,14 @@ def _manifest(study: Study, scale: str, seed: int, config, tasks: list[TaskSpec]
             "versions": versions(), "machine": machine()}
 
 
+def _record_run(store: Store, record: dict[str, Any]) -> None:
+    """One JSON file per invocation in ``DIR/runs/`` (who ran what, where, with which versions)."""
+    runs = store.root / "runs"
+    runs.mkdir(exist_ok=True)
+    name = f"{record['started'].replace(':', '')}-{os.getpid()}.json"
+    write_atomic(runs / name, (json.dumps(record, indent=2) + "\n").encode(), store.tmp)
+
+
 def _columns_table(study: Study, columns: dict[str, np.ndarray]):
     import pyarrow as pa
 
@@ -380,7 +396,9 @@ def run(
         scale = "custom"
     if workers is not None and workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
-    workers = workers or os.cpu_count() or 1
+    if int(seed) < 0:
+        raise InputError(f"--seed must be >= 0, got {seed}")
+    workers = workers or cores()
     tasks = study.tasks(config)
     store = Store(Path(out))
     manifest = _manifest(study, scale, seed, config, tasks)
@@ -393,6 +411,10 @@ def run(
         store.remove("failures", key)
     failed -= done
     todo = [t for t in tasks if t.key not in done and (retry_failed or t.key not in failed)]
+    _record_run(store, {"started": _now(), "engine": "dask" if scheduler else "local",
+                        "scheduler": scheduler, "workers": None if scheduler else workers,
+                        "retry_failed": retry_failed, "tasks_to_run": len(todo), "versions": versions(),
+                        "machine": machine()})
     if on_start is not None:
         on_start(len(tasks), len(todo))
     kill_after = next((int(a) for k, a in faults if k == "kill-after"), None)
@@ -402,13 +424,17 @@ def run(
     results = _dask_results(todo, job, scheduler) if scheduler else _local_results(todo, job, workers)
     ran = n_failed = rows = committed = 0
     for res in results:
+        if res.error is None:
+            try:
+                table = _columns_table(study, res.columns)
+            except Exception as exc:  # a study that breaks its own schema: that task fails
+                res = TaskResult(res.key, None, res.stats, _error_info(exc))
         if res.error is not None:
             store.write_table("failures", res.key, _failure_table(res.key, by_key[res.key].params, res.error))
             n_failed += 1
             if on_result is not None:
                 on_result(res, 0)
             continue
-        table = _columns_table(study, res.columns)
         store.write_table("timings", res.key, _stats_table(res.key, res.stats))
         hook = _kill_self if kill_in_write is not None and committed == kill_in_write else None
         store.write_table("rows", res.key, table, before_rename=hook)

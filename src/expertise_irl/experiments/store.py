@@ -6,6 +6,7 @@ DIR/config.toml         the same config, for people
 DIR/rows/<task>.parquet     the task's rows (deterministic; the study's documented schema)
 DIR/timings/<task>.parquet  wall times, worker and host of the task (differ run to run)
 DIR/failures/<task>.parquet one row: the task's key, parameters, error type, message, traceback
+DIR/runs/<time>-<pid>.json  one record per invocation: engine, workers, versions, machine
 DIR/tmp/                    files being written; renamed into place when complete
 ```
 
