@@ -123,7 +123,7 @@
     }
   }
 
-  function fmtBeta(b) { return b >= 1 ? b.toPrecision(3) : String(+b.toPrecision(2)); }
+  function fmtBeta(b) { return String(+b.toPrecision(3)); }
 
   function drawHistory() {
     const canvas = $("history"), dpr = window.devicePixelRatio || 1;
@@ -181,14 +181,16 @@
     bars($("theta-bars"), info.feature_names.map((f, i) => [f, est.theta_hat[i]]), "theta");
     $("status").innerHTML = "";
     const parts = [
-      ["map", info.map.name], ["episode", s.episode + 1], ["step", s.step],
+      ["map", info.map.name.split(/[\\/]/).pop()], ["episode", s.episode + 1], ["step", s.step],
+      ["at", "(" + s.position[0] + ", " + s.position[1] + ")"],
       ["actions recorded", s.actions], ["episodes done", s.episodes_done],
     ];
     for (const [k, v] of parts) {
       const span = document.createElement("span");
-      span.id = k === "actions recorded" ? "actions" : k === "episodes done" ? "episodes-done" : k.replace(" ", "-");
+      span.id = { map: "map-name", "actions recorded": "actions", "episodes done": "episodes-done",
+                  at: "position" }[k] || k;
       span.dataset.value = String(v);
-      span.textContent = k + " " + v + "   ";
+      span.textContent = k + " " + v;
       $("status").appendChild(span);
     }
     $("active").checked = s.mode === "active";

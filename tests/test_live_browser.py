@@ -1,0 +1,149 @@
+"""End to end in a real headless Chromium (Debian's ``chromium``, driven by Python Playwright):
+start ``expertise-irl live``, drive an episode to the goal with key presses, check that the shown
+β̂ changes after every action, that ``demos.csv`` holds exactly those actions, that a move into a
+wall is refused and not recorded, and that the real server refuses path traversal.
+
+The test saves a screenshot of the page mid-episode in its temporary directory; with
+``EXPERTISE_IRL_SCREENSHOT=PATH`` it also copies it there (that is how ``docs/images/live.png``
+is made).
+"""
+
+from __future__ import annotations
+
+import http.client
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from test_live import path_to_goal
+
+from expertise_irl.demos import read_demos_csv
+from expertise_irl.worlds.zones import ACTION_NAMES, parse_map
+
+CHROMIUM = shutil.which("chromium")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed "
+                                "(apt-get install -y chromium; .ci/run installs it)")
+
+MAP = """\
+......xx....
+..ss..xx..#.
+..ss......#.
+>>>>>>>>>>>v
+.....tt....v
+.....tt....v
+...........G
+"""
+#: Keys used for each action, alternating between the arrows and WASD.
+KEYS = {"up": ("ArrowUp", "w"), "down": ("ArrowDown", "s"), "left": ("ArrowLeft", "a"),
+        "right": ("ArrowRight", "d")}
+SERVER_START_S = 180  # the solve compiles JAX kernels on first use; generous for a loaded CI machine
+
+
+@pytest.fixture
+def server(tmp_path):
+    map_path = tmp_path / "room.txt"
+    map_path.write_text(MAP)
+    out = tmp_path / "rec"
+    exe = Path(sys.executable).with_name("expertise-irl")
+    proc = subprocess.Popen(
+        [str(exe), "live", str(map_path), "--thetas", "0,1", "--out", str(out), "--port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "COLUMNS": "200"})
+    url = None
+    deadline = time.monotonic() + SERVER_START_S
+    try:
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            m = re.search(r"live page: (http://127\.0\.0\.1:\d+/)", line)
+            if m:
+                url = m.group(1)
+                break
+        assert url, f"server did not start: {proc.stderr.read() if proc.poll() is not None else ''}"
+        yield url, map_path, out
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def raw_get(url: str, path: str) -> tuple[int, bytes]:
+    host, port = url.split("//")[1].rstrip("/").split(":")
+    conn = http.client.HTTPConnection(host, int(port), timeout=10)
+    conn.request("GET", path)  # sent exactly as written: no client-side normalisation of ".."
+    r = conn.getresponse()
+    return r.status, r.read()
+
+
+def test_drive_an_episode_in_chromium(server, tmp_path):
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
+    url, map_path, out = server
+    mdp = parse_map(MAP, name=str(map_path)).to_mdp()
+    index = parse_map(MAP).state_index()
+    shot = tmp_path / "live.png"
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--headless", "--no-sandbox"])
+        try:
+            page = browser.new_page(viewport={"width": 1180, "height": 880})
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url)
+            expect = sync_api.expect  # waits without evaluating strings (the page's CSP forbids eval)
+            expect(page.locator("#actions")).to_have_attribute("data-value", "0", timeout=30_000)
+            assert page.locator("#beta-bars .track").count() == 6  # one bar per β of paper-sim
+            assert page.locator("#theta-bars .track").count() == 5
+            assert page.locator("#group-bars .track").count() == 3
+            assert "The robot chose" in page.locator("#start").inner_text()
+            x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
+            start = int(index[y, x])
+            actions = path_to_goal(mdp, start)
+            assert len(actions) >= 3
+
+            wall = next(a for a in range(4) if mdp.next_state[start, a] < 0)
+            page.keyboard.press(KEYS[ACTION_NAMES[wall]][0])  # into a wall or off the map
+            expect(page.locator("#message")).to_have_class(re.compile("refused"))
+            assert "not recorded" in page.locator("#message").inner_text()
+            assert page.locator("#actions").get_attribute("data-value") == "0"
+
+            shown = [page.locator("#beta-hat").inner_text()]
+            for i, a in enumerate(actions):
+                key = KEYS[ACTION_NAMES[a]][i % 2]
+                page.keyboard.press(key)
+                done = i + 1 == len(actions)
+                want = "1" if done else "0"
+                expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+                expect(page.locator("#episodes-done")).to_have_attribute("data-value", want)
+                shown.append(page.locator("#beta-hat").inner_text())
+                assert shown[-1] != shown[-2], f"β̂ did not change after action {i + 1}: {shown}"
+                if i == len(actions) // 2:
+                    page.screenshot(path=str(shot))
+            assert not errors, errors
+            assert "Goal reached" in page.locator("#message").inner_text()
+            assert page.locator("#episode").get_attribute("data-value") == "2"
+            assert not errors, errors
+        finally:
+            browser.close()
+    assert shot.stat().st_size > 10_000
+    if os.environ.get("EXPERTISE_IRL_SCREENSHOT"):
+        shutil.copyfile(shot, os.environ["EXPERTISE_IRL_SCREENSHOT"])
+
+    trajs = read_demos_csv(out / "demos.csv", mdp)
+    assert trajs.state[0] == start and trajs.action.tolist() == actions
+    assert (out / "result.json").is_file()
+
+    for path in ("/static/../session.py", "/static/..%2fsession.py", "/static/%2e%2e/server.py",
+                 "/static/..%2f..%2f..%2f..%2fpyproject.toml", "/../../etc/passwd"):
+        status, body = raw_get(url, path)
+        assert status in (400, 404), (path, status)
+        assert b"import" not in body and b"root:" not in body
+    assert raw_get(url, "/static/live.js")[0] == 200
