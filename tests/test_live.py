@@ -98,7 +98,8 @@ def test_protocol_moves_update_the_estimate_and_the_recording(tmp_path, zone_map
             assert r["path"][-1] == r["position"] and len(r["path"]) == len(pairs) + 1
     trajs = read_demos_csv(tmp_path / "demos.csv", mdp)  # on disk, in the project's format
     assert list(zip(trajs.state.tolist(), trajs.action.tolist(), strict=True)) == pairs
-    assert not (tmp_path / "result.json").exists()  # written after an episode, none has ended
+    doc = json.loads((tmp_path / "result.json").read_text())  # written at the start and per episode
+    assert doc["data"]["actions"] == 0 and doc["settings"]["mdp_digest"] == "sha256:x"
 
 
 def test_wall_is_refused_and_not_recorded(tmp_path, zone_map, hyp):
@@ -196,9 +197,12 @@ def test_killed_mid_episode_resumes_from_disk(tmp_path, zone_map, hyp):
 
 
 def test_resume_refuses_a_directory_of_another_map(tmp_path, zone_map, hyp):
-    (tmp_path / "result.json").write_text(json.dumps({"settings": {"mdp_digest": "sha256:other"}}))
-    with pytest.raises(Exception, match="recorded on another map"):
-        make(zone_map, hyp, tmp_path)
+    from expertise_irl.errors import InputError
+
+    make(zone_map, hyp, tmp_path / "a")  # no action yet: result.json already names the map
+    other = dict(settings={"command": "live", "mdp_digest": "sha256:other"})
+    with pytest.raises(InputError, match="recorded on another map"):
+        open_session(zone_map, hyp, tmp_path / "a", **other)
 
 
 def test_static_files_only_from_the_package(tmp_path, zone_map, hyp):

@@ -5,9 +5,10 @@ takes one decoded client message and returns the replies; the web server only
 moves JSON between the socket and this class. Nothing a client sends names a
 file: the session writes only ``DIR/demos.csv`` (every accepted action appended,
 flushed and synced as it happens, grid format ``episode,step,x,y``) and
-``DIR/result.json`` (the discrete-set result, rewritten atomically after every
-episode). Opening a session on a DIR that already holds ``demos.csv`` replays it,
-so the belief, the history and an episode cut short all resume.
+``DIR/result.json`` (the discrete-set result, written when the session opens and
+rewritten atomically after every episode). Opening a session on a DIR that already
+holds ``demos.csv`` replays it, so the belief, the history and an episode cut short
+all resume.
 """
 
 from __future__ import annotations
@@ -286,8 +287,7 @@ def open_session(zone_map: ZoneMap, hypotheses: HypothesisSet, out_dir: str | Pa
         if trajs is not None and len(trajs):
             session.episode_starts.append(len(session.history_beta))
         session.choose_start()
-    if trajs is not None and len(trajs):
-        session.write_result()
+    session.write_result()  # from the start: records the map this DIR belongs to
     return session
 
 
