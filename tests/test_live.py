@@ -102,6 +102,19 @@ def test_protocol_moves_update_the_estimate_and_the_recording(tmp_path, zone_map
     assert doc["data"]["actions"] == 0 and doc["settings"]["mdp_digest"] == "sha256:x"
 
 
+def test_a_move_that_cannot_be_written_is_not_counted(tmp_path, zone_map, hyp):
+    session, client = make(zone_map, hyp, tmp_path)
+    (tmp_path / "demos.csv").mkdir()  # appending to it fails
+    s = session.position
+    a = next(a for a in range(4) if session.mdp.next_state[s, a] >= 0)
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        r = move(ws, ACTION_NAMES[a])
+        assert r["type"] == "error" and "not counted" in r["message"]
+    assert session.estimator.n_observed == 0 and session.position == s
+    assert not session.estimator.episode_open
+
+
 def test_wall_is_refused_and_not_recorded(tmp_path, zone_map, hyp):
     session, client = make(zone_map, hyp, tmp_path)
     mdp = session.mdp
@@ -256,6 +269,14 @@ def test_live_command_bad_input(tmp_path):
     assert_input_error(invoke("live", "corridor", "--out", tmp_path / "file", "--port", 0), "not a directory")
     assert_input_error(invoke("live", "nosuchmap", "--port", 0), "nosuchmap")
     assert_input_error(invoke("live", "corridor", "--betas", "0,1", "--port", 0), "--betas")
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        assert_input_error(invoke("live", "corridor", "--out", tmp_path / "r0", "--port", port),
+                           f"--port {port}", "cannot listen")
     rec = tmp_path / "rec"
     rec.mkdir()
     (rec / "demos.csv").write_text("episode,step,x,y\n0,0,0,0\n0,1,3,0\n")  # a jump: not resumable

@@ -111,7 +111,14 @@ class LiveSession:
         first = not self.estimator.episode_open
         est = self.estimator.observe(s, action)
         e, t, _, _ = self.estimator._pairs[-1]
-        self._append_rows(e, t, s, nxt, first)
+        try:
+            self._append_rows(e, t, s, nxt, first)
+        except OSError as exc:  # not on disk, so not in the estimate either
+            self.estimator.undo()
+            if first:
+                self.estimator.end_episode()
+            return [{"type": "error", "message": f"could not record the move in {DEMOS_NAME}: "
+                                                 f"{exc.strerror or exc}; it was not counted"}]
         self.history_beta.append(est.beta_hat)
         self.history_entropy.append(est.entropy)
         self.position = nxt
