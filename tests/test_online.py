@@ -209,3 +209,34 @@ def test_observe_is_fast(setup):
         on.observe(s, a)
     per = (time.perf_counter() - t0) / len(states)
     assert per < 1e-3, f"{per * 1e6:.0f} µs per action"
+
+
+def test_built_from_mdp_and_set_directly_with_progress(setup, capsys):
+    mdp, hyp, est, _, _ = setup
+    calls = []
+    direct = OnlineEstimator(mdp, hyp, progress=lambda d, t: calls.append(d))
+    assert calls[-1] == len(hyp)
+    np.testing.assert_allclose(direct.belief().log_policy, est.belief().log_policy)
+    OnlineEstimator(mdp, hyp, progress=True)
+    assert "hypotheses" in capsys.readouterr().err  # the bar went to stderr
+    with pytest.raises(InputError, match="only when log_policy is not given"):
+        OnlineEstimator(mdp, hyp, est.belief().log_policy, progress=True)
+
+
+def test_estimate_speaks_the_belief_names_and_saves_to_a_file(setup, tmp_path):
+    trajs = setup[3]
+    on = fresh(setup)
+    on.feed(trajs.first(1))
+    r = on.estimate
+    b = on.belief()
+    assert r.mean_beta == r.beta_hat and r.mean_theta is r.theta_hat
+    assert r.group_probabilities() == r.group_probabilities == pytest.approx(b.group_probabilities())
+    assert r.map_hypothesis()[1] == b.map_hypothesis()[1]
+    assert r.expertise_group in ("high", "medium", "low")
+    json.dumps(r.to_dict(["a", "b", "c", "d", "e"]))
+    on.save(tmp_path / "snap.json")
+    other = fresh(setup)
+    assert other.restore(tmp_path / "snap.json").beta_hat == pytest.approx(r.beta_hat, abs=TOL)
+    assert other.restore(on.snapshot().to_dict()).n_observed == on.n_observed
+    with pytest.raises(InputError, match="no such snapshot"):
+        other.restore(tmp_path / "missing.json")

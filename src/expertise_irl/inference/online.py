@@ -31,6 +31,14 @@ from ..mdp import TabularMDP
 from .belief import TRACE_GROUPS, DiscreteBelief
 
 
+class GroupProbabilities(dict):
+    """``{"high": p, "medium": p, "low": p}``; also callable (returning itself), so code written for
+    :meth:`DiscreteBelief.group_probabilities` works unchanged."""
+
+    def __call__(self) -> GroupProbabilities:
+        return self
+
+
 class Estimate(NamedTuple):
     """The posterior summary after some number of observed actions.
 
@@ -57,6 +65,20 @@ class Estimate(NamedTuple):
     map_beta: float
     map_probability: float
     map_index: int
+
+    @property
+    def mean_beta(self) -> float:
+        """β̂ (the name :class:`DiscreteBelief` uses)."""
+        return self.beta_hat
+
+    @property
+    def mean_theta(self) -> np.ndarray:
+        """θ̂ (the name :class:`DiscreteBelief` uses)."""
+        return self.theta_hat
+
+    def map_hypothesis(self) -> tuple[np.ndarray, float, float]:
+        """``(θ, β, probability)`` of the most probable hypothesis (as in :class:`DiscreteBelief`)."""
+        return self.map_theta, self.map_beta, self.map_probability
 
     @property
     def expertise_group(self) -> str:
@@ -117,6 +139,24 @@ class OnlineSnapshot:
         return cls(*arrays, bool(doc["episode_open"]), *sizes)
 
 
+def _solve(mdp: TabularMDP, hypotheses: HypothesisSet, progress, solve_kwargs) -> np.ndarray:
+    from ..planning import solve
+
+    if progress is True:
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+        cols = (TextColumn("solving soft value iteration"), BarColumn(), MofNCompleteColumn(),
+                TextColumn("hypotheses"), TimeRemainingColumn())
+        with Progress(*cols, console=Console(stderr=True)) as bar:
+            task = bar.add_task("solve", total=len(hypotheses))
+            return solve(mdp, hypotheses.theta, hypotheses.beta,
+                         progress=lambda done, total: bar.update(task, completed=done, total=total),
+                         **solve_kwargs).log_policy
+    cb = progress if callable(progress) else None
+    return solve(mdp, hypotheses.theta, hypotheses.beta, progress=cb, **solve_kwargs).log_policy
+
+
 class OnlineEstimator:
     """A live estimate of (θ, β) that is updated after every observed action.
 
@@ -130,18 +170,25 @@ class OnlineEstimator:
         hypotheses: the set Ψ = Θ × B.
     """
 
-    def __init__(self, mdp: TabularMDP, hypotheses: HypothesisSet, log_policy: np.ndarray, *,
-                 prior: np.ndarray | None = None) -> None:
+    def __init__(self, mdp: TabularMDP, hypotheses: HypothesisSet, log_policy: np.ndarray | None = None, *,
+                 prior: np.ndarray | None = None,
+                 progress: Callable[[int, int], None] | bool | None = None, **solve_kwargs) -> None:
         H = len(hypotheses)
+        if hypotheses.thetas.shape[1] != mdp.n_features:
+            raise InputError(
+                f"hypotheses have {hypotheses.thetas.shape[1]} features but the MDP has "
+                f"{mdp.n_features} ({', '.join(mdp.feature_names)})"
+            )
+        if log_policy is None:
+            log_policy = _solve(mdp, hypotheses, progress, solve_kwargs)
+        elif solve_kwargs or progress:
+            raise InputError("progress and solver options apply only when log_policy is not given")
         lp = np.asarray(log_policy, dtype=np.float64)
         if lp.shape != (H, mdp.n_states, mdp.n_actions):
             raise InputError(
                 f"log_policy must have shape [H, S, A] = [{H}, {mdp.n_states}, {mdp.n_actions}], "
                 f"got {lp.shape}"
             )
-        if hypotheses.thetas.shape[1] != mdp.n_features:
-            raise InputError(f"hypotheses have {hypotheses.thetas.shape[1]} features but the MDP has "
-                             f"{mdp.n_features}")
         base = DiscreteBelief.from_log_policy(hypotheses, lp, prior=prior)  # validates table and prior
         self.mdp = mdp
         self.hypotheses = hypotheses
@@ -164,18 +211,15 @@ class OnlineEstimator:
     # ------------------------------------------------------------ construction
     @classmethod
     def from_mdp(cls, mdp: TabularMDP, hypotheses: HypothesisSet, *, prior: np.ndarray | None = None,
-                 progress: Callable[[int, int], None] | None = None, **solve_kwargs) -> OnlineEstimator:
-        """Solve every hypothesis on ``mdp`` (``progress(done, total)`` is called as batches finish;
-        other keywords go to :func:`~expertise_irl.planning.solve`) and start from ``prior``."""
-        from ..planning import solve
+                 progress: Callable[[int, int], None] | bool | None = None,
+                 **solve_kwargs) -> OnlineEstimator:
+        """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
 
-        if hypotheses.thetas.shape[1] != mdp.n_features:
-            raise InputError(
-                f"hypotheses have {hypotheses.thetas.shape[1]} features but the MDP has "
-                f"{mdp.n_features} ({', '.join(mdp.feature_names)})"
-            )
-        sol = solve(mdp, hypotheses.theta, hypotheses.beta, progress=progress, **solve_kwargs)
-        return cls(mdp, hypotheses, sol.log_policy, prior=prior)
+        ``progress`` is ``progress(done, total)``, called as batches of hypotheses finish, or
+        True for a progress bar on stderr; other keywords go to :func:`~expertise_irl.planning.solve`.
+        ``OnlineEstimator(mdp, hypotheses, progress=...)`` does the same.
+        """
+        return cls(mdp, hypotheses, None, prior=prior, progress=progress, **solve_kwargs)
 
     @classmethod
     def from_belief(cls, mdp: TabularMDP, belief: DiscreteBelief) -> OnlineEstimator:
@@ -255,6 +299,10 @@ class OnlineEstimator:
         """Close the open episode (the next action starts a new one, anywhere)."""
         self._open = False
 
+    def start_episode(self) -> None:
+        """Mark an episode boundary: the next action begins a new episode (same as :meth:`end_episode`)."""
+        self._open = False
+
     def undo(self) -> Estimate:
         """Take back the last observed action.
 
@@ -300,7 +348,8 @@ class OnlineEstimator:
             theta_hat=p @ self._theta,
             beta_values=self._betas,
             beta_probabilities=pb,
-            group_probabilities={k: float(v) for k, v in zip(TRACE_GROUPS, g, strict=True)},
+            group_probabilities=GroupProbabilities(
+                (k, float(v)) for k, v in zip(TRACE_GROUPS, g, strict=True)),
             entropy=ent,
             map_theta=self._theta[h],
             map_beta=float(self._beta[h]),
@@ -333,8 +382,28 @@ class OnlineEstimator:
         return OnlineSnapshot(t.episode.copy(), t.step.copy(), t.state.copy(), t.action.copy(),
                               self._open, len(self.hypotheses), self.mdp.n_states, self.mdp.n_actions)
 
-    def restore(self, snap: OnlineSnapshot) -> Estimate:
-        """Return to the state of ``snap`` (taken from an estimator on the same MDP and set)."""
+    def save(self, path) -> None:
+        """Write :meth:`snapshot` as JSON to ``path`` (atomically); :meth:`restore` reads it back."""
+        from ..results import write_json
+
+        write_json(path, self.snapshot().to_dict())
+
+    def restore(self, snap) -> Estimate:
+        """Return to the state of ``snap``: an :class:`OnlineSnapshot`, its :meth:`~OnlineSnapshot.to_dict`
+        form, or a file written by :meth:`save` (from an estimator on the same MDP and set)."""
+        if isinstance(snap, dict):
+            snap = OnlineSnapshot.from_dict(snap)
+        elif not isinstance(snap, OnlineSnapshot):
+            import json
+            from pathlib import Path
+
+            path = Path(snap)
+            if not path.is_file():
+                raise InputError(f"{path}: no such snapshot file")
+            try:
+                snap = OnlineSnapshot.from_dict(json.loads(path.read_text(encoding="utf-8")))
+            except ValueError as exc:
+                raise InputError(f"{path}: not a snapshot ({exc})") from None
         sizes = (len(self.hypotheses), self.mdp.n_states, self.mdp.n_actions)
         if (snap.n_hypotheses, snap.n_states, snap.n_actions) != sizes:
             raise InputError(
