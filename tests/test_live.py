@@ -247,6 +247,65 @@ def test_other_origins_and_hosts_are_refused(tmp_path, zone_map, hyp):
 
 
 # ------------------------------------------------------------------------- commands
+def spawn_live(map_path, out):
+    """Start ``expertise-irl live`` on a free loopback port; (process, ws URL)."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    exe = Path(sys.executable).with_name("expertise-irl")
+    proc = subprocess.Popen([str(exe), "live", str(map_path), "--thetas", "0,1", "--out", str(out),
+                             "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = proc.stdout.readline()  # the solve comes first; the URL is the first line on stdout
+    m = re.search(r"http://(127\.0\.0\.1:\d+)/", line)
+    assert m, f"no URL in {line!r}: {proc.stderr.read() if proc.poll() is not None else ''}"
+    return proc, f"ws://{m.group(1)}/ws"
+
+
+def test_sigkill_mid_episode_then_restart_resumes(tmp_path, zone_map):
+    """The real server, killed with SIGKILL mid-episode: what was done is on disk and resumes."""
+    import asyncio
+    import signal
+
+    import websockets
+
+    map_path = tmp_path / "small.txt"
+    map_path.write_text(MAP)
+    out = tmp_path / "rec"
+    mdp = zone_map.to_mdp()
+
+    async def drive(url, n):
+        async with websockets.connect(url) as ws:
+            state = json.loads(await ws.recv())["state"]
+            s = int(zone_map.state_index()[state["position"][1], state["position"][0]])
+            plan = path_to_goal(mdp, s)
+            for a in plan[:n]:
+                await ws.send(json.dumps({"type": "move", "action": ACTION_NAMES[a]}))
+                state = json.loads(await ws.recv())
+            return state, plan
+
+    proc, url = spawn_live(map_path, out)
+    try:
+        before, plan = asyncio.run(drive(url, 2))
+        assert before["actions"] == 2 and len(plan) > 2
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    on_disk = read_demos_csv(out / "demos.csv", mdp)
+    assert on_disk.action.tolist() == plan[:2]
+    proc, url = spawn_live(map_path, out)
+    try:
+        after, rest = asyncio.run(drive(url, 0))
+        assert after["actions"] == 2 and after["step"] == 2 and after["position"] == before["position"]
+        assert after["estimate"]["beta_hat"] == pytest.approx(before["estimate"]["beta_hat"], abs=1e-12)
+        assert after["start"]["how"] == "resumed" and rest == plan[2:]
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=30)
+
+
+
 def test_live_command_prints_its_url_and_warns_off_loopback(tmp_path, monkeypatch):
     import expertise_irl.live.server as server
 

@@ -75,6 +75,8 @@ def server(tmp_path):
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+    assert proc.returncode == 0, "Ctrl-C should stop the server cleanly"
+    assert "stopped:" in proc.stdout.read()
 
 
 def raw_get(url: str, path: str) -> tuple[int, bytes]:

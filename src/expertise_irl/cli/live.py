@@ -83,7 +83,10 @@ def live(
 
         sys.stdout.flush()
 
-    serve(session, sock, on_ready=ready)
+    try:
+        serve(session, sock, on_ready=ready)
+    except KeyboardInterrupt:  # uvicorn shuts down cleanly, then re-raises the Ctrl-C
+        pass
     _say(f"stopped: {est.n_observed} actions in {session.demos_path}")
 
 
