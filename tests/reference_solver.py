@@ -135,6 +135,58 @@ def soft_value_iteration(mdp: TabularMDP, theta, beta: float, *,
     return ReferenceSoft(Q, np.array([float(v) for v in value]), log_pi, it)
 
 
+def relative_value_iteration(mdp: TabularMDP, theta, beta: float) -> ReferenceSoft:
+    """``maxent-relative`` for one hypothesis, in reward units, straight from its definition:
+
+        V[s] = β log( (1/|A(s)|) Σ_a exp(Q[s, a] / β) ),   π(a|s) = exp((Q − V)/β) / |A(s)|.
+    """
+    assert beta > 0
+    ar = _FLOAT
+    actions, rewards = _rewards(mdp, theta, ar)
+
+    def value_of(qs):
+        return _soft_max(qs, beta, ar) - beta * math.log(len(qs))
+
+    value, it = _value_iteration(mdp, actions, rewards, value_of, ar)
+    q = _q_table(mdp, actions, rewards, value, ar)
+    value = [0.0 if mdp.terminal[s] else value_of(q[s]) for s in range(mdp.n_states)]
+    Q = np.full((mdp.n_states, mdp.n_actions), -np.inf)
+    log_pi = np.full((mdp.n_states, mdp.n_actions), -np.inf)
+    for s in range(mdp.n_states):
+        for a, qa in zip(actions[s], q[s], strict=True):
+            Q[s, a] = qa
+            log_pi[s, a] = (qa - value[s]) / beta - math.log(len(actions[s]))
+    return ReferenceSoft(Q, np.array(value), log_pi, it)
+
+
+def boltzmann_policy(mdp: TabularMDP, theta, beta: float) -> ReferenceSoft:
+    """``boltzmann`` for one hypothesis: π(a|s) ∝ exp(Q*(s, a)/β) with Q* from hard value iteration."""
+    assert beta > 0
+    hard = hard_value_iteration(mdp, theta)
+    log_pi = np.full((mdp.n_states, mdp.n_actions), -np.inf)
+    for s in range(mdp.n_states):
+        acts = np.flatnonzero(np.isfinite(hard.q[s]))
+        if len(acts) == 0:
+            continue
+        qs = [hard.q[s, a] / beta for a in acts]
+        m = max(qs)
+        log_z = m + math.log(sum(math.exp(x - m) for x in qs))
+        for a, x in zip(acts, qs, strict=True):
+            log_pi[s, a] = x - log_z
+    return ReferenceSoft(hard.q, hard.value, log_pi, hard.iterations)
+
+
+def reference(mdp: TabularMDP, theta, beta: float, model: str = "maxent") -> ReferenceSoft:
+    """The slow reference of any observation model."""
+    if model == "maxent":
+        return soft_value_iteration(mdp, theta, beta)
+    if model == "maxent-relative":
+        return relative_value_iteration(mdp, theta, beta)
+    if model == "boltzmann":
+        return boltzmann_policy(mdp, theta, beta)
+    raise ValueError(model)
+
+
 def hard_value_iteration(mdp: TabularMDP, theta, *, tie_atol: float = 1e-9) -> ReferenceHard:
     """Hard (β = 0) value iteration; greedy sets hold the actions within ``tie_atol`` of max Q."""
     ar = _FLOAT

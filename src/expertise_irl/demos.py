@@ -11,6 +11,7 @@ import numpy as np
 
 from .errors import InputError, where
 from .mdp import TabularMDP
+from .models import DEFAULT_MODEL, check_model
 from .planning import solve
 from .worlds.zones import ACTION_DELTAS, ACTION_NAMES
 
@@ -136,8 +137,9 @@ def simulate(
     starts=None,
     max_steps: int = DEFAULT_MAX_STEPS,
     log_policy: np.ndarray | None = None,
+    model: str = DEFAULT_MODEL,
 ) -> Trajectories:
-    """Episodes of a simulated person acting with the max-ent policy π(θ, β).
+    """Episodes of a simulated person acting with the policy π(θ, β) of ``model``.
 
     All episodes are advanced together, one step at a time; each step draws one
     uniform number per active episode and picks the action by inverse-CDF sampling
@@ -166,6 +168,9 @@ def simulate(
     log_policy : array ``[S, A]``, optional
         Use this log-policy instead of solving for ``(theta, beta)`` (e.g. one row of
         ``planning.solve(...).log_policy``); ``theta`` and ``beta`` may then be None.
+    model : str
+        The observation model of :mod:`expertise_irl.models` (default ``"maxent"``, the
+        paper's); ignored when ``log_policy`` is given.
 
     Returns
     -------
@@ -181,7 +186,7 @@ def simulate(
         if theta is None or beta is None:
             raise InputError("simulate needs theta and beta (or a log_policy)")
         th, b = _check_hypothesis(mdp, theta, beta)
-        log_policy = solve(mdp, th, b).log_policy[0]
+        log_policy = solve(mdp, th, b, model=check_model(model)).log_policy[0]
     else:
         if theta is not None or beta is not None:
             _check_hypothesis(mdp, theta, beta)

@@ -1,13 +1,16 @@
 """Differentiable log-likelihood of demonstrations (paper Eq. 11) in θ and β.
 
 ``L(θ, β) = Σ_{s,a} N[s, a] log π_{θ,β}(a|s)`` with counts ``N`` of the observed pairs.
-Only ``w = θ/β`` matters; soft values are solved in scaled units ``v = V/β`` as the
-fixed point ``v = T(w, v) = logsumexp_a(φ·w + γ v[next])``.
+Only ``w = θ/β`` matters; values are solved in scaled units ``v = V/β`` as the fixed point
+of the observation model's backup (:mod:`expertise_irl.models`), with the same red-black
+sweep (:func:`expertise_irl.solver.sweep`, one lane) and the same solver layout as the
+batched solver, so the two cannot disagree.
 
 Gradients come from implicit differentiation of that fixed point (a ``custom_vjp``:
 reverse-mode through the solver's ``while_loop`` is neither possible nor wanted). With
-the cotangent ``g`` of ``v``, the adjoint ``λ = g + (∂T/∂v)ᵀ λ`` is a discounted
-visitation under π, and ``(∂T/∂w)ᵀ λ`` the expected feature counts it weights. So
+the cotangent ``g`` of ``v``, the adjoint ``λ = g + (∂S/∂v)ᵀ λ`` of the sweep map ``S`` is a
+discounted visitation under π, and ``(∂S/∂w)ᵀ λ`` the expected feature counts it weights.
+For ``maxent``:
 
     ∂L/∂w = Σ N φ(s, a)  −  (discounted expected features under π from the observed states,
                               corrected for their successors),
@@ -18,15 +21,16 @@ the familiar max-ent IRL gradient; ∂L/∂θ = ∂L/∂w / β and ∂L/∂β = 
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import solver as kernel
 from .demos import Trajectories
 from .errors import InputError
 from .mdp import TabularMDP
+from .models import DEFAULT_MODEL, check_model
 
 jax.config.update("jax_enable_x64", True)
 
@@ -40,25 +44,6 @@ def pair_counts(mdp: TabularMDP, trajs: Trajectories) -> np.ndarray:
         s, a = np.argwhere(bad)[0]
         raise InputError(f"observed action {a} is not available in {mdp.describe_state(int(s))}")
     return counts
-
-
-def _arrays(mdp: TabularMDP):
-    S, A = mdp.n_states, mdp.n_actions
-    term = mdp.terminal
-    self_idx = np.broadcast_to(np.arange(S)[:, None], (S, A))
-    avail = mdp.available.copy()
-    avail[term, 0] = True  # terminal rows: one zero-reward self-loop keeps v = 0
-    next_idx = np.where((mdp.next_state >= 0) & ~term[:, None], mdp.next_state, self_idx)
-    feats = np.where(term[:, None, None], 0.0, mdp.features)
-    return jnp.asarray(feats), jnp.asarray(next_idx, dtype=jnp.int32), jnp.asarray(avail)
-
-
-def _bellman(feats, next_idx, avail, gamma, w, v):
-    """One soft backup T(w, v) in scaled units; also returns the log-policy."""
-    q = jnp.where(avail, feats @ w, -jnp.inf) + gamma * v[next_idx]
-    m = jax.lax.stop_gradient(jnp.max(q, axis=1, keepdims=True))
-    log_norm = m[:, 0] + jnp.log(jnp.sum(jnp.exp(q - m), axis=1))
-    return log_norm, q - log_norm[:, None]
 
 
 def _iterate(step, x0, gamma, tol, max_iter):
@@ -79,51 +64,72 @@ def _iterate(step, x0, gamma, tol, max_iter):
     return x, k
 
 
-@partial(jax.custom_vjp, nondiff_argnums=(0, 1, 2, 3, 4, 5))
-def _fixed_point(feats, next_idx, avail, gamma, tol, max_iter, w, v0):
-    v, _ = _iterate(lambda v: _bellman(feats, next_idx, avail, gamma, w, v)[0], v0, gamma, tol, max_iter)
-    return v
+def _fixed_point_fn(prep: kernel.Prepared, gamma: float, tol: float, max_iter: int, model: str):
+    """``v*(w, v0)``: the model's fixed point for one hypothesis, with an implicit gradient.
 
+    Forward: red-black sweeps of the batched solver (:func:`expertise_irl.solver.sweep`) on one
+    lane. Backward: the adjoint ``λ = g + (∂S/∂v)ᵀ λ`` of the same sweep map ``S`` (it has the
+    same fixed point, so implicit differentiation through it is exact), iterated to ``tol``.
+    """
+    def step(w, v):
+        return kernel.sweep(prep, w, v, gamma, model)[0]
 
-def _fixed_point_fwd(feats, next_idx, avail, gamma, tol, max_iter, w, v0):
-    v = _fixed_point(feats, next_idx, avail, gamma, tol, max_iter, w, v0)
-    return v, (w, v)
+    @jax.custom_vjp
+    def fixed_point(w, v0):
+        return _iterate(lambda v: step(w, v), v0, gamma, tol, max_iter)[0]
 
+    def fwd(w, v0):
+        v = fixed_point(w, v0)
+        return v, (w, v)
 
-def _fixed_point_bwd(feats, next_idx, avail, gamma, tol, max_iter, res, g):
-    w, v = res
-    _, vjp_v = jax.vjp(lambda v_: _bellman(feats, next_idx, avail, gamma, w, v_)[0], v)
-    lam, _ = _iterate(lambda lam: g + vjp_v(lam)[0], g, gamma, tol, max_iter)
-    _, vjp_w = jax.vjp(lambda w_: _bellman(feats, next_idx, avail, gamma, w_, v)[0], w)
-    return vjp_w(lam)[0], jnp.zeros_like(v)
+    def bwd(res, g):
+        w, v = res
+        _, vjp_v = jax.vjp(lambda v_: step(w, v_), v)
+        lam, _ = _iterate(lambda lam: g + vjp_v(lam)[0], g, gamma, tol, max_iter)
+        _, vjp_w = jax.vjp(lambda w_: step(w_, v), w)
+        return vjp_w(lam)[0], jnp.zeros_like(v)
 
-
-_fixed_point.defvjp(_fixed_point_fwd, _fixed_point_bwd)
+    fixed_point.defvjp(fwd, bwd)
+    return fixed_point
 
 
 def make_log_likelihood(
-    mdp: TabularMDP, counts: np.ndarray, *, tol: float = 1e-10, max_iter: int = 200_000
+    mdp: TabularMDP, counts: np.ndarray, *, tol: float = 1e-10, max_iter: int = 200_000,
+    model: str = DEFAULT_MODEL,
 ) -> Callable:
     """``f(theta, beta, v0=None) -> (L, v)``: JAX-differentiable Eq. 11 for one hypothesis.
 
     ``theta [K]`` and ``beta`` are JAX scalars/arrays; ``v`` is the converged scaled value
     ``V/β`` ``[S]``, which callers may pass back as ``v0`` to warm-start the next solve.
     ``jax.grad(lambda t, b: f(t, b)[0], argnums=(0, 1))`` gives the exact gradient.
+    ``model`` is the observation model (:mod:`expertise_irl.models`); the backup is the one
+    the batched solver uses.
     """
+    check_model(model)
     counts = np.asarray(counts, dtype=np.float64)
     if counts.shape != (mdp.n_states, mdp.n_actions):
         raise InputError(f"counts must have shape [S, A] = [{mdp.n_states}, {mdp.n_actions}]")
-    feats, next_idx, avail = _arrays(mdp)
-    n = jnp.asarray(np.where(mdp.available, counts, 0.0))
+    prep = kernel.prepare(mdp, jnp.float64)
+    nb = prep.n_block
+    # Counts in the solver's layout [2, A, n_block]; terminal and padding rows observe nothing.
+    n_blk = np.zeros((2, mdp.n_actions, nb))
+    live = np.flatnonzero(~mdp.terminal)
+    rows = prep.rows[live]
+    n_blk[rows // nb, :, rows % nb] = np.where(mdp.available, counts, 0.0)[live]
+    n_blk = jnp.asarray(n_blk)
+    observed = n_blk > 0
     gamma = float(mdp.gamma)
-    S = mdp.n_states
+    fixed_point = _fixed_point_fn(prep, gamma, tol, max_iter, model)
+    state_rows = jnp.asarray(prep.rows)
 
     def f(theta, beta, v0=None):
-        w = jnp.asarray(theta, jnp.float64) / beta
-        v0 = jnp.zeros(S) if v0 is None else v0
-        v = _fixed_point(feats, next_idx, avail, gamma, tol, max_iter, w, jax.lax.stop_gradient(v0))
-        _, log_pi = _bellman(feats, next_idx, avail, gamma, w, v)
+        w = (jnp.asarray(theta, jnp.float64) / beta)[:, None]  # [K, 1 lane]
+        v_init = jnp.zeros((prep.n_rows, 1))
+        if v0 is not None:
+            v_init = v_init.at[state_rows, 0].set(jnp.asarray(v0, jnp.float64)).at[-1, 0].set(0.0)
+        v = fixed_point(w, jax.lax.stop_gradient(v_init))
+        log_pi = jnp.stack([kernel.block_backup(prep, b, w, v, gamma, model)[1][..., 0] for b in (0, 1)])
         # Unobserved pairs (including unavailable ones, log π = -inf) contribute nothing.
-        return jnp.sum(n * jnp.where(n > 0, log_pi, 0.0)), v
+        return jnp.sum(jnp.where(observed, n_blk * log_pi, 0.0)), v[state_rows, 0]
 
     return f

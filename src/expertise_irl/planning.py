@@ -27,6 +27,7 @@ import numpy as np
 from . import solver as kernel
 from .errors import ConvergenceError, InputError
 from .mdp import TabularMDP
+from .models import DEFAULT_MODEL, check_model
 from .solver import LANES
 
 jax.config.update("jax_enable_x64", True)
@@ -45,17 +46,32 @@ class SoftSolution(NamedTuple):
             unavailable and on terminal rows.
         iterations: ``[H]`` backups each hypothesis needed.
         beta: ``[H]`` the temperatures solved for.
+        model: the observation model solved (:mod:`expertise_irl.models`).
     """
 
     value: np.ndarray
     log_policy: np.ndarray
     iterations: np.ndarray
     beta: np.ndarray
+    model: str = DEFAULT_MODEL
 
     @property
     def q(self) -> np.ndarray:
-        """``[H, S, A]`` soft Q = V + β log π (``-inf`` where unavailable)."""
-        return self.value[:, :, None] + self.beta[:, None, None] * self.log_policy
+        """``[H, S, A]`` Q-values in reward units (``-inf`` where unavailable).
+
+        Every model's policy is ``softmax(Q/β)``; they differ in V: ``maxent`` Q = V + β log π,
+        ``maxent-relative`` Q = V + β (log π + log|A(s)|), ``boltzmann`` (V = max Q)
+        Q = V + β (log π − max_a log π).
+        """
+        lp = self.log_policy
+        if self.model == "maxent-relative":
+            n = np.isfinite(lp).sum(axis=-1, keepdims=True)
+            lp = lp + np.log(np.maximum(n, 1))
+        elif self.model == "boltzmann":
+            with np.errstate(invalid="ignore"):
+                top = np.max(lp, axis=-1, keepdims=True)
+            lp = lp - np.where(np.isfinite(top), top, 0.0)
+        return self.value[:, :, None] + self.beta[:, None, None] * lp
 
     @property
     def policy(self) -> np.ndarray:
@@ -142,6 +158,7 @@ def solve(
     dtype: str = "float64",
     v_init: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    model: str = DEFAULT_MODEL,
 ) -> SoftSolution:
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
@@ -163,12 +180,34 @@ def solve(
             accurate to about 1e-4 relative, limited by float32 resolution over ~1/(1-γ) backups).
         v_init: optional ``[H, S]`` warm start for V (reward units).
         progress: called as ``progress(done, total)`` as batches of hypotheses complete.
+        model: the observation model (:mod:`expertise_irl.models`): ``"maxent"`` (the paper's),
+            ``"maxent-relative"`` or ``"boltzmann"``. For ``boltzmann`` the hard values are
+            solved once per distinct θ (at its smallest β, so every β meets ``tol``) and
+            rescaled for the others; ``v_init`` is then ignored.
 
     Raises:
         InputError: bad shapes, non-finite θ, or β <= 0.
         ConvergenceError: a hypothesis did not converge within ``max_iter`` sweeps.
     """
     theta, beta = _as_hypotheses(mdp, theta, beta)
+    check_model(model)
+    if model == "boltzmann":
+        # Hard values in reward units do not depend on β: solve each distinct θ once, at its
+        # smallest β (the tightest tolerance in scaled units), then finish every hypothesis
+        # from those values; the pool's own stopping rule still certifies each one.
+        uniq, inv = np.unique(theta, axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        bmin = np.full(len(uniq), np.inf)
+        np.minimum.at(bmin, inv, beta)
+        opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "dtype": dtype}
+        hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, model=model, **opts)
+        sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, model=model, **opts)
+        return sol._replace(iterations=sol.iterations + hard.iterations[inv])
+    return _solve(mdp, theta, beta, tol=tol, max_iter=max_iter, chunk_size=chunk_size, dtype=dtype,
+                  v_init=v_init, progress=progress, model=model)
+
+
+def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model) -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
@@ -208,7 +247,7 @@ def solve(
         n = len(idx)
         padded = np.concatenate([idx, np.repeat(idx[-1:], size - n)])  # one shape for every batch
         v, it, delta = kernel.solve_pool(prep, jnp.asarray(weights[padded]), jnp.asarray(scaled0[padded]),
-                                         *consts, groups=groups)
+                                         *consts, groups=groups, model=model)
         delta = np.asarray(delta)[:n]
         if not np.all(delta == 0):  # also catches NaN
             j = int(np.flatnonzero(~(delta == 0))[0])
@@ -224,7 +263,7 @@ def solve(
         w_final = weights[np.concatenate([padded, np.repeat(padded[-1:], n_final - size)])]
         for lo in range(0, n, slots):  # one more backup gives normalised log-policies
             vf, lp = kernel.final_policies(prep, w_final[lo:lo + slots], v[lo:lo + slots], mdp.gamma,
-                                           groups=groups)
+                                           groups=groups, model=model)
             m = min(slots, n - lo)
             hs = idx[lo:lo + m]
             value[hs] = np.asarray(vf, dtype=np.float64)[:m][:, prep.rows] * beta[hs, None]
@@ -235,7 +274,7 @@ def solve(
             progress(min(start + size, H), H)
     log_pi[:, ~mdp.available] = -np.inf
     value[:, mdp.terminal] = 0.0
-    return SoftSolution(value, log_pi, iters, beta.copy())
+    return SoftSolution(value, log_pi, iters, beta.copy(), model)
 
 
 def pair_log_likelihoods(log_policy: np.ndarray, states, actions) -> np.ndarray:

@@ -5,7 +5,9 @@ Layout. States are split into two blocks by the parity of their distance to a go
 values (red-black Gauss–Seidel). Hypotheses are the minor axis, in *lanes* of 8 (one
 AVX-512 vector of float64), and several lane groups are vmapped side by side, which
 lets XLA spread them over the cores. Everything is in scaled units: with weights
-``w = θ/β`` the reward is ``r = w·φ`` and ``V = β v``.
+``w = θ/β`` the reward is ``r = w·φ`` and ``V = β v``. The backup itself is the observation
+model's (:func:`expertise_irl.models.backup`, a static argument of every kernel), and
+:func:`sweep` is also the fixed-point map of the differentiable likelihood.
 
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
@@ -14,6 +16,7 @@ costs the sum of its members' sweeps, not its slowest member's times the batch s
 
 from __future__ import annotations
 
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -21,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .mdp import TabularMDP
+from .models import backup
 
 jax.config.update("jax_enable_x64", True)
 
@@ -42,6 +46,7 @@ class Prepared(NamedTuple):
     features: jnp.ndarray  # [2, A, n_block, K]
     next_row: jnp.ndarray  # [2, A, n_block] solver row of the successor (unavailable: zero row)
     avail: jnp.ndarray  # [2, A, n_block] (padding rows: one zero-reward move to the zero row)
+    log_n_actions: jnp.ndarray  # [2, n_block] log of the number of available actions
     rows: np.ndarray  # [S] solver row of each state (terminal: the zero row)
     n_block: int
 
@@ -101,32 +106,34 @@ def prepare(mdp: TabularMDP, dtype) -> Prepared:
         feats[b, :, :n] = np.transpose(mdp.features[m], (1, 0, 2))
         next_row[b, :, :n] = np.where(avail[m], rows[np.maximum(mdp.next_state[m], 0)], zero_row).T
         ok[b, :, :n] = avail[m].T
+    log_n = np.log(ok.sum(axis=1))  # [2, n_block]
     return Prepared(jnp.asarray(feats, dtype=dtype), jnp.asarray(next_row, dtype=jnp.int32),
-                    jnp.asarray(ok), rows, n_block)
+                    jnp.asarray(ok), jnp.asarray(log_n, dtype=dtype), rows, n_block)
 
 
-def _backup(prep: Prepared, b: int, w, v, gamma):
-    """Soft backup of block ``b`` for one lane group: (values [n_block, L], log π [A, n_block, L])."""
+def block_backup(prep: Prepared, b: int, w, v, gamma, model: str):
+    """Backup of block ``b`` for one lane group: (values [n_block, L], log π [A, n_block, L]).
+
+    ``w [K, L]`` scaled weights, ``v [rows, L]`` scaled values; ``model`` (static) picks the
+    observation model (:func:`expertise_irl.models.backup`).
+    """
     r = jnp.where(prep.avail[b][..., None], jnp.einsum("ask,kl->asl", prep.features[b], w), -jnp.inf)
     q = r + gamma * v.at[prep.next_row[b]].get(mode="promise_in_bounds")  # [A, n_block, L]
-    m = jnp.max(q, axis=0)
-    z = q - m
-    log_norm = jnp.log(jnp.sum(jnp.exp(z), axis=0))
-    return m + log_norm, z - log_norm
+    return backup(model, q, prep.log_n_actions[b][:, None], axis=0)
 
 
-def _sweep(prep: Prepared, w, v, gamma):
+def sweep(prep: Prepared, w, v, gamma, model: str):
     """One red-black sweep of one lane group: (v [rows, L], largest change per lane [L])."""
     nb = prep.features.shape[2]  # static (n_block itself is traced inside jit)
     delta = jnp.zeros(v.shape[1], v.dtype)
     for b in (0, 1):
-        new, _ = _backup(prep, b, w, v, gamma)
+        new, _ = block_backup(prep, b, w, v, gamma, model)
         delta = jnp.maximum(delta, jnp.max(jnp.abs(new - v[b * nb:(b + 1) * nb]), axis=0))
         v = jax.lax.dynamic_update_slice_in_dim(v, new, b * nb, axis=0)
     return v, delta
 
 
-_sweep_groups = jax.vmap(_sweep, in_axes=(None, 0, 0, None))
+_sweep_groups = jax.vmap(sweep, in_axes=(None, 0, 0, None, None))
 
 
 def _to_lanes(x, groups: int):
@@ -141,7 +148,7 @@ def _from_lanes(x):
     return x.reshape(-1, *x.shape[2:])
 
 
-def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int):
+def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str = "maxent"):
     """Solve every hypothesis with a pool of ``groups × LANES`` lanes that refill as they finish.
 
     Args:
@@ -152,21 +159,21 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     Returns ``(v [H, rows], sweeps [H], last change [H])``; the last change is 0 for every
     hypothesis that met its tolerance, and positive (or NaN) for one that did not.
     """
-    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups)
+    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups, model=model)
 
 
-@jax.jit
-def _final_backup(prep: Prepared, w, v, gamma):
+@partial(jax.jit, static_argnames=("model",))
+def _final_backup(prep: Prepared, w, v, gamma, model: str):
     """Values and log-policies from converged values, ``[G, K, L]`` and ``[G, rows, L]`` in lanes."""
     def one(w, v):
-        v0, lp0 = _backup(prep, 0, w, v, gamma)
-        v1, lp1 = _backup(prep, 1, w, v, gamma)
+        v0, lp0 = block_backup(prep, 0, w, v, gamma, model)
+        v1, lp1 = block_backup(prep, 1, w, v, gamma, model)
         return jnp.concatenate([v0, v1, v[2 * prep.features.shape[2]:]], axis=0), jnp.stack([lp0, lp1])
 
     return jax.vmap(one)(w, v)
 
 
-def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int):
+def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str):
     dtype = prep.features.dtype
     eps = jnp.finfo(dtype).eps
     H = weights.shape[0]
@@ -195,8 +202,8 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     def body(c):
         w, v, lane_h, active, it, next_h, out_v, out_it, out_d = c
         # Several sweeps between checks: retiring lanes costs about as much as a sweep.
-        v = jax.lax.fori_loop(0, CHECK_EVERY - 1, lambda _, v: _sweep_groups(prep, w, v, gamma)[0], v)
-        v, d = _sweep_groups(prep, w, v, gamma)
+        v = jax.lax.fori_loop(0, CHECK_EVERY - 1, lambda _, v: _sweep_groups(prep, w, v, gamma, model)[0], v)
+        v, d = _sweep_groups(prep, w, v, gamma, model)
         d = _from_lanes(d)
         it = it + CHECK_EVERY * active.astype(it.dtype)
         vmax = _from_lanes(jnp.max(jnp.abs(v), axis=1))
@@ -226,10 +233,10 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     return out[6], out[7], out[8]
 
 
-_solve_pool = jax.jit(_pool_impl, static_argnames=("groups",))
+_solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "model"))
 
 
-def final_policies(prep: Prepared, weights, v, gamma, *, groups: int):
+def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):
     """One more backup for ``[n, K]`` weights and ``[n, rows]`` values (n = groups × LANES).
 
     Returns ``(v [n, rows], log π [n, 2, A, n_block])``; each log-policy row is normalised by
@@ -237,5 +244,5 @@ def final_policies(prep: Prepared, weights, v, gamma, *, groups: int):
     """
     dtype = prep.features.dtype
     vf, lp = _final_backup(prep, _to_lanes(jnp.asarray(weights, dtype), groups),
-                           _to_lanes(jnp.asarray(v, dtype), groups), jnp.asarray(gamma, dtype))
+                           _to_lanes(jnp.asarray(v, dtype), groups), jnp.asarray(gamma, dtype), model)
     return _from_lanes(vf), _from_lanes(lp)
