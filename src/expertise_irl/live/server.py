@@ -157,7 +157,9 @@ def serve(session: LiveSession, sock: socket.socket, *,
     host = sock.getsockname()[0]
     allowed = [*LOOPBACK_NAMES] if is_loopback(host) else None
     app = create_app(session, allowed_hosts=allowed)
-    config = uvicorn.Config(app, log_level="warning", lifespan="off", ws_max_size=64 * 1024,
+    # Frames up to 1 MiB reach the handler (and get an error reply if over MAX_MESSAGE); a larger
+    # one is refused by the WebSocket layer, which closes the connection (code 1009).
+    config = uvicorn.Config(app, log_level="warning", lifespan="off", ws_max_size=2**20,
                             access_log=False)
     server = uvicorn.Server(config)
     if on_ready is not None:
