@@ -19,7 +19,7 @@ The same person (θ*, β*, Θ_20) is used by every strategy. Reported per group 
 strategy: the number of episodes until the true group has posterior probability
 ≥ 0.9 (median over people; people who never reach it within ``--episodes`` count as
 ``--episodes`` + 1, and how many reached it is shown), and the mean |β* − β̂| after 3
-and after 5 episodes; the time of one start choice.
+and after 5 episodes (± its standard error over people); the time of one start choice.
 """
 
 from __future__ import annotations
@@ -108,6 +108,8 @@ def summarise(rows, strategies, episodes: int) -> list[dict]:
                 "mean_episodes_to_group": float(np.mean(n_ep)),
                 "beta_distance_3": float(d[:, 2].mean()) if d.shape[1] >= 3 else None,
                 "beta_distance_5": float(d[:, 4].mean()) if d.shape[1] >= 5 else None,
+                "beta_distance_3_se": float(d[:, 2].std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else None,
+                "beta_distance_5_se": float(d[:, 4].std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else None,
                 "choose_s": float(np.mean([r[name]["choose_s"] for r in rs])),
             })
     return table
@@ -141,11 +143,13 @@ def main() -> None:
           "mean \\|β*−β̂\\| after 3 | after 5 | time per start choice |")
     print("|---|---|---|---|---|---|")
     for t in table:
+        d3 = f"{t['beta_distance_3']:.2f} ± {t['beta_distance_3_se']:.2f}"
+        d5 = f"{t['beta_distance_5']:.2f} ± {t['beta_distance_5_se']:.2f}"
         print(f"| {t['group']} | {t['strategy']} | {t['median_episodes_to_group']:g} "
-              f"({t['reached']}/{t['people']}) | {t['beta_distance_3']:.3f} | {t['beta_distance_5']:.3f} | "
+              f"({t['reached']}/{t['people']}) | {d3} | {d5} | "
               f"{t['choose_s'] * 1e3:.0f} ms |")
     print(f"\n(people who never reach {THRESHOLD} within {args.episodes} episodes count as "
-          f"{args.episodes + 1}); total {time.perf_counter() - t0:.0f} s")
+          f"{args.episodes + 1}; ± one standard error over people); total {time.perf_counter() - t0:.0f} s")
     if args.json:
         args.json.write_text(json.dumps({"machine": info, "table": table, "people": rows}, indent=1) + "\n")
 
