@@ -278,6 +278,8 @@ def test_sigkill_mid_episode_then_restart_resumes(tmp_path, zone_map):
     async def drive(url, n):
         async with websockets.connect(url) as ws:
             state = json.loads(await ws.recv())["state"]
+            await ws.send("x" * 50_000)  # oversized for the protocol, answered, not fatal
+            assert "too large" in json.loads(await ws.recv())["message"]
             s = int(zone_map.state_index()[state["position"][1], state["position"][0]])
             plan = path_to_goal(mdp, s)
             for a in plan[:n]:
