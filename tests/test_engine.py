@@ -123,6 +123,15 @@ def test_other_seed_or_config_is_refused(reference, tmp_path):
     assert sorted(p.name for p in (out / "rows").iterdir()) == before
 
 
+def test_second_run_on_a_directory_being_written_is_refused(reference, tmp_path):
+    from expertise_irl.experiments.store import Store
+
+    out = copy_sweep(reference[0], tmp_path / "copy")
+    with Store(out).lock(), pytest.raises(InputError, match="another `experiment run`"):
+        run(STUDY, out, scale="smoke", workers=1)
+    assert run(STUDY, out, scale="smoke", workers=1).skipped == len(STUDY.tasks(SMOKE))  # released
+
+
 def test_directory_of_something_else_is_refused(tmp_path):
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")

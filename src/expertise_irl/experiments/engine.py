@@ -403,6 +403,14 @@ def run(
     store = Store(Path(out))
     manifest = _manifest(study, scale, seed, config, tasks)
     store.open(manifest, to_toml(manifest["config"], header=study.name))
+    with store.lock():
+        store.clean_tmp()
+        return _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_failed,
+                           on_start, on_result, t_start)
+
+
+def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_failed, on_start, on_result,
+                t_start) -> RunSummary:
     faults = _faults()
     if ("kill-at-start", "") in faults:
         _kill_self()

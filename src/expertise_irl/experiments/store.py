@@ -8,6 +8,7 @@ DIR/timings/<task>.parquet  wall times, worker and host of the task (differ run 
 DIR/failures/<task>.parquet one row: the task's key, parameters, error type, message, traceback
 DIR/runs/<time>-<pid>.json  one record per invocation: engine, workers, versions, machine
 DIR/tmp/                    files being written; renamed into place when complete
+DIR/lock                    flock held by the run that is writing
 ```
 
 A row shard is the commit point of its task: it is written to ``DIR/tmp``, flushed to
@@ -145,7 +146,6 @@ class Store:
                     f"{manifest['config_hash'][:12]}); refusing to mix results, use another --out"
                 )
             self._make_dirs()
-            self.clean_tmp()
             return old
         if root.exists() and any(root.iterdir()):
             raise InputError(f"{root}: directory is not empty and holds no experiment; use another --out")
@@ -153,6 +153,29 @@ class Store:
         (root / "config.toml").write_text(config_toml)
         write_atomic(root / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode(), self.tmp)
         return manifest
+
+    @contextlib.contextmanager
+    def lock(self):
+        """Hold ``DIR/lock`` while writing: a second run on the same DIR is refused, not interleaved.
+
+        The lock is an ``flock`` on the file, so the system releases it when the process ends,
+        however it ends; a stale lock file left by a killed run does not block the next one.
+        """
+        try:
+            import fcntl
+        except ImportError:  # no flock on this platform: run unlocked
+            yield
+            return
+        fd = os.open(self.root / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise InputError(f"{self.root}: another `experiment run` is writing to this directory "
+                                 "right now; wait for it or use another --out") from None
+            yield
+        finally:
+            os.close(fd)
 
     def _make_dirs(self) -> None:
         for d in (*TABLES, "tmp"):

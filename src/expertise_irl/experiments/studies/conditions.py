@@ -34,11 +34,15 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ...errors import InputError
 from ..engine import Column, Study, TaskSpec, seed_sequence
+
+if TYPE_CHECKING:
+    from ...demos import Trajectories
 
 GROUPS = ("high", "medium", "low")
 TRUTHS = ("in_set", "out_of_set")
@@ -151,7 +155,7 @@ class Person:
     fixed_theta: np.ndarray | None
     fixed_beta: float | None
     value: np.ndarray  # [S] soft value of the truth (for regret)
-    trajectories: object  # demos.Trajectories
+    trajectories: Trajectories
 
 
 def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str, truth: str) -> Person:
