@@ -27,8 +27,9 @@ METHOD_ARGS = {
     "discrete": ("--thetas", "0,1", "--betas", "0.1,1,10", "--per-action"),
     "birl": ("--method", "birl", "--iterations", "50"),
     "map": ("--method", "map", "--starts", "1"),
-    "nuts": ("--method", "nuts", "--chains", "2", "--warmup", "20", "--samples", "20"),
 }
+METHODS = ("discrete", "birl", "map", "nuts")
+FEATURES = ("length", "road", "avoid", "slow", "traffic")
 
 
 def invoke(*args):
@@ -73,6 +74,33 @@ def demos(work) -> Path:
     return path
 
 
+def sampler_result(path: Path, n_draws: int, *, seed: int = 0) -> Path:
+    """A ``nuts`` result written by the real result writer from synthetic draws (two chains).
+
+    NUTS itself takes minutes even with tiny options on a shared 2-core machine; the figure
+    only reads the result document, so its format is what matters here. Beyond
+    ``INLINE_DRAWS`` draws the writer puts them in a CSV beside the JSON, as ``infer`` does.
+    """
+    from expertise_irl.inference.gradient import credible_intervals
+    from expertise_irl.results import continuous_result, samples_path_for, write_json
+
+    rng = np.random.default_rng(seed)
+    chain = np.repeat([0, 1], n_draws // 2 + 1)[:n_draws]
+    beta = rng.lognormal(np.log(0.5), 0.3, n_draws)
+    theta = rng.dirichlet([5, 5, 1, 1, 1], n_draws)
+    best = int(np.argmax(beta))
+    out = {"beta_hat": float(beta.mean()), "theta_hat": theta.mean(axis=0).tolist(),
+           "map": {"theta": theta[best].tolist(), "beta": float(beta[best]), "log_posterior": -1.0},
+           "credible_intervals": credible_intervals(theta, beta, 0.9),
+           "diagnostics": {"r_hat": {"beta": 1.0}, "divergences": 0}, "run_time_s": 0.1,
+           "draws": (chain, theta, beta)}
+    doc = continuous_result(out, method="nuts", feature_names=FEATURES, settings={"method": "nuts"},
+                            data={"episodes": 4, "actions": 40},
+                            samples_path=samples_path_for(path))
+    write_json(path, doc)
+    return path
+
+
 @pytest.fixture(scope="module")
 def results(work, demos) -> dict[str, Path]:
     out = {}
@@ -80,6 +108,7 @@ def results(work, demos) -> dict[str, Path]:
         path = work / f"{method}.json"
         ok(invoke("infer", "corridor", "--demos", demos, *args, "--out", path))
         out[method] = path
+    out["nuts"] = sampler_result(work / "nuts.json", 60)
     return out
 
 
@@ -220,30 +249,33 @@ def test_map_result_is_a_marked_point(results):
     assert "point" in fig.get_suptitle()
 
 
-def test_samples_csv_beside_the_result_is_found(results, work, tmp_path, monkeypatch):
-    doc = load(results["nuts"])
-    s = doc["samples"]
-    names = doc["feature_names"]
-    folder = tmp_path / "elsewhere"
-    folder.mkdir()
-    rows = ["chain,draw," + ",".join(["beta", *names])]
-    for k, (c, b, t) in enumerate(zip(s["chain"], s["beta"], s["theta"], strict=True)):
-        rows.append(",".join(map(repr, [c, k, b, *t])))
-    (folder / "r.samples.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
-    doc["samples"] = "r.samples.csv"
-    (folder / "r.json").write_text(json.dumps(doc), encoding="utf-8")
-    monkeypatch.chdir(work)  # not found as given: looked up beside the JSON
-    _, beta, theta = rp.load_samples(doc, folder / "r.json")
-    np.testing.assert_allclose(beta, s["beta"])
-    np.testing.assert_allclose(theta, s["theta"])
-    ok(invoke("plot", folder / "r.json", "--out", tmp_path / "r.png"))
-    (folder / "r.samples.csv").unlink()
-    one_line_error(invoke("plot", folder / "r.json", "--out", tmp_path / "r2.png"),
-                   str(folder / "r.json"), "r.samples.csv")
+def test_samples_csv_beside_the_result_is_found(tmp_path, monkeypatch):
+    from expertise_irl.results import INLINE_DRAWS
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    monkeypatch.chdir(run_dir)  # infer --out big.json, run here: the JSON names the CSV relatively
+    sampler_result(Path("big.json"), INLINE_DRAWS + 2)
+    doc = load(run_dir / "big.json")
+    assert doc["samples"] == "big.samples.csv"
+    moved = tmp_path / "elsewhere"
+    shutil.move(run_dir, moved)
+    monkeypatch.chdir(tmp_path)  # not found as given: looked up beside the JSON
+    chain, beta, theta = rp.load_samples(doc, moved / "big.json")
+    assert len(beta) == INLINE_DRAWS + 2 and theta.shape == (INLINE_DRAWS + 2, 5)
+    assert set(chain.tolist()) == {0, 1}
+    fig = rp.result_figure(doc, source=moved / "big.json")
+    (ax_b,) = find_axes(fig, lambda a: a.get_title().startswith(r"$\beta$: 90%"))
+    lo, hi = np.quantile(beta, [0.05, 0.95])
+    assert f"[{lo:.3g}, {hi:.3g}]" in ax_b.get_title()
+    ok(invoke("plot", moved / "big.json", "--out", tmp_path / "r.png"))
+    (moved / "big.samples.csv").unlink()
+    one_line_error(invoke("plot", moved / "big.json", "--out", tmp_path / "r2.png"),
+                   str(moved / "big.json"), "big.samples.csv")
 
 
 # ------------------------------------------------------------------------------ CLI
-@pytest.mark.parametrize("method", list(METHOD_ARGS))
+@pytest.mark.parametrize("method", METHODS)
 def test_every_method_plots(method, results, demos, tmp_path):
     out = tmp_path / f"{method}.png"
     r = invoke("plot", results[method], "--map", "corridor", "--demos", demos, "--out", out)
@@ -331,3 +363,18 @@ def test_check_result_unit():
                          "theta_hat": [1, 2]}, "r.json")
     rp.check_result({"method": "map", "feature_names": ["a"], "beta_hat": 1.0, "theta_hat": [1]}, "r.json")
     assert expertise_group(0.5) == "medium"
+
+
+def test_diagnostics_warnings_are_on_the_figure(results):
+    doc = load(results["map"])
+    doc.setdefault("diagnostics", {})["warnings"] = ["starts disagree: 2 optima", "x" * 300]
+    fig = rp.result_figure(doc, source=results["map"])
+    texts = [t for sf in fig.subfigs for t in sf.texts if t.get_gid() == "warnings"]
+    assert len(texts) == 1
+    lines = texts[0].get_text().splitlines()
+    assert lines[0] == "warning: starts disagree: 2 optima"
+    assert lines[1].endswith("…") and len(lines[1]) < 200
+    doc["diagnostics"]["warnings"] = []
+    fig = rp.result_figure(doc, source=results["map"])
+    assert not [t for sf in fig.subfigs for t in sf.texts if t.get_gid() == "warnings"]
+    assert not [t for t in fig.texts if t.get_gid() == "warnings"]

@@ -382,3 +382,8 @@ def test_cap_note_names_paying_moves_and_entropy():
     assert "from road" in note and "entropy" not in note  # an expert: the road pays
     note = render.cap_note(["cap"], 200, 10.0, (-0.2, "length"))
     assert "200-step cap" in note and "entropy" in note and "from length" not in note
+
+
+def test_cap_note_without_the_entropy_bonus():
+    note = render.cap_note(["cap"], 500, 10.0, (-0.2, "length"), model="boltzmann")
+    assert "entropy" not in note and "boltzmann" in note

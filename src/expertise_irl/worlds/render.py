@@ -694,12 +694,12 @@ def best_move(mdp: TabularMDP, theta) -> tuple[float, str | None]:
 
 
 def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | None = None,
-             move: tuple[float, str | None] | None = None) -> str | None:
+             move: tuple[float, str | None] | None = None, model: str = "maxent") -> str | None:
     """Sentences on the episodes that hit the step cap and why (None when none did).
 
-    Two causes, both part of the model: moves that pay (``move`` = (largest reward of a move
-    that does not enter the goal, the feature behind it)), and the entropy bonus of
-    the max-ent person, which grows with β.
+    Causes, all part of the model: moves that pay (``move`` = (largest reward of a move that
+    does not enter the goal, the feature behind it)), and, for the paper's ``maxent`` model,
+    the entropy bonus, which grows with β.
     """
     from ..hypotheses import GROUP_BOUNDARIES
 
@@ -708,18 +708,20 @@ def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | 
         return None
     text = (f"{n_cap} of {n} episode{'s' if n != 1 else ''} hit the {max_steps}-step cap without "
             "reaching the goal. That is the model, not a bug:")
+    reasons = []
     pays = move is not None and move[0] > 0
     if pays:
-        text += (f" some moves pay (reward θ*·φ up to +{move[0]:.2g}, from {move[1]}), so going "
-                 "round can be worth more than finishing;")
-    if not pays or beta_true is None or beta_true >= GROUP_BOUNDARIES[0]:
+        reasons.append(f"some moves pay (reward θ*·φ up to +{move[0]:.2g}, from {move[1]}), so "
+                       "going round can be worth more than finishing")
+    if model == "maxent" and (not pays or beta_true is None or beta_true >= GROUP_BOUNDARIES[0]):
         who = f"β* = {beta_true:g}" if beta_true is not None else "a large β"
-        text += (f" {'and ' if pays else ''}the paper's max-ent person is paid for randomness "
-                 f"(β × entropy per step) while entering the goal ends all pay, and with {who} "
-                 "wandering is worth more than finishing.")
-    else:
-        text = text.rstrip(";") + "."
-    return text.replace(";.", ".")
+        reasons.append("the paper's max-ent person is paid for randomness (β × entropy per step) "
+                       f"while entering the goal ends all pay, and with {who} wandering is worth "
+                       "more than finishing")
+    if not reasons:
+        reasons.append(f"under the {model} model with these weights the goal is not worth the "
+                       "way there")
+    return f"{text} {'; and '.join(reasons)}."
 
 
 def render_demo_png(path: str | Path, run, *, title: str | None = None,
@@ -751,7 +753,8 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
     shown_ids = ", ".join(str(int(e)) for e in ids[:shown])
     notes = [f"Episode{'s' if shown != 1 else ''} {shown_ids} drawn "
              f"({shown} of {n}); every episode is in the visit dots."]
-    note = cap_note(outcomes, max_steps, run.beta_true, best_move(mdp, run.theta_true))
+    note = cap_note(outcomes, max_steps, run.beta_true, best_move(mdp, run.theta_true),
+                    model=getattr(run, "model", "maxent"))
     if note:
         notes.append(note)
     import textwrap

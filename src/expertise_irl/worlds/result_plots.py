@@ -9,7 +9,8 @@ One figure per result (any method of ``infer``, or ``demo``'s result):
   demonstrations are given;
 - for ``--per-action`` discrete results, the trace: β̂ with its 90% band, the
   expertise-group probabilities and the posterior entropy against the number of
-  actions seen, with a dashed line where each new episode starts.
+  actions seen, with a dashed line where each new episode starts;
+- the result's ``diagnostics.warnings`` (non-convergence and the like), in red below.
 
 Like :mod:`.render`, figures are built on a :class:`~matplotlib.figure.Figure` directly
 (no pyplot state). Artists carry gids so that tests can find them.
@@ -220,8 +221,10 @@ def draw_sampled(ax: Axes, draws, label: str, *, interval=None, mean: float | No
     ax.axvspan(lo, hi, color=BAND_COLOR, alpha=0.55, lw=0, gid="interval", zorder=0)
     span = float(x.max() - x.min())
     bins: Any = min(30, max(5, int(np.sqrt(x.size)) + 1))
-    if span == 0:
-        bins = [x[0] - 0.005, x[0] + 0.005]
+    if span == 0:  # every draw the same: a narrow spike on a readable axis
+        w = max(abs(float(x[0])) * 0.01, 1e-3)
+        bins = [x[0] - w, x[0] + w]
+        ax.set_xlim(x[0] - 25 * w, x[0] + 25 * w)
     ax.hist(x, bins=bins, density=True, color=POST_COLOR, alpha=0.85, edgecolor="white", lw=0.3,
             gid="hist", zorder=2)
     if mean is not None:
@@ -453,10 +456,15 @@ def result_figure(
         map_w = mw + 0.3
         post_h = max(post_h, mh + (1.4 if trajs is not None else 0.6))
     trace_h = 5.2 if trace else 0.0
-    fig = render._new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + 0.6))
-    top = fig
-    if trace:
-        top, bottom = fig.subfigures(2, 1, height_ratios=[post_h, trace_h], hspace=0.02)
+    warnings = result_warnings(doc)
+    warn_h = 0.25 + 0.16 * min(len(warnings), 4) if warnings else 0.0
+    fig = render._new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + warn_h + 0.6))
+    heights = [h for h in (post_h, trace_h, warn_h) if h > 0]
+    rows = list(fig.subfigures(len(heights), 1, height_ratios=heights, hspace=0.02)) if len(
+        heights) > 1 else [fig]
+    top = rows[0]
+    bottom = rows[1] if trace else None
+    sf_warn = rows[-1] if warnings else None
     if draw_map:
         sf_map, sf_post = top.subfigures(1, 2, width_ratios=[map_w, 3.0 * ncols], wspace=0.02)
         ax_map = sf_map.add_subplot()
@@ -506,8 +514,10 @@ def result_figure(
                          mean=doc["theta_hat"][i], point=None if mp_t is None else mp_t[i],
                          true=None if theta_true is None else theta_true[i])
         n_chains = len(np.unique(chain))
-        subtitle = (f"{len(beta)} draws from {n_chains} chain{'s' if n_chains != 1 else ''}; "
-                    "shaded = 90% credible interval; dashed = posterior mean; ▲ = best draw")
+        few = " (too few to show a shape)" if len(beta) < 50 else ""
+        subtitle = (f"{len(beta)} draw{'s' if len(beta) != 1 else ''}{few} from {n_chains} "
+                    f"chain{'s' if n_chains != 1 else ''}; shaded = 90% credible interval; "
+                    "dashed = posterior mean; ▲ = best draw")
     else:  # map: a point, no posterior
         draw_point(ax_beta, doc["beta_hat"], r"$\hat\beta$", lo=0.005, hi=20, log=True)
         ax_beta.set_xlabel(r"$\beta$ (log scale; low = expert)", fontsize=7.5)
@@ -516,7 +526,7 @@ def result_figure(
             draw_point(ax, doc["theta_hat"][i], rf"$\hat\theta$ {names[i]}", lo=-0.02, hi=hi)
         subtitle = "MAP optimum only: this method gives a point, not a posterior"
 
-    if trace:
+    if bottom is not None:
         axs = bottom.subplots(3, 1, sharex=True, height_ratios=[1.3, 1.0, 0.8])
         betas = doc["marginals"]["beta"]["values"]
         draw_trace(axs, trace, beta_true=beta_true, betas=betas)
@@ -529,7 +539,20 @@ def result_figure(
         what = f", {int(data['episodes'])} episodes, {int(data['actions'])} actions"
     fig.suptitle(f"{source.name}: {method}{what}; β̂ = {doc['beta_hat']:.3g} "
                  f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}", fontsize=10)
+    if sf_warn is not None:
+        shown = [w if len(w) <= 160 else w[:157] + "…" for w in warnings[:3]]
+        more = f"\n… and {len(warnings) - 3} more" if len(warnings) > 3 else ""
+        sf_warn.text(0.5, 0.5, "\n".join(f"warning: {w}" for w in shown) + more
+                     + "\n(all in the result's diagnostics.warnings)", ha="center", va="center",
+                     fontsize=8.5, color="#b02a1a", gid="warnings")
     return fig
+
+
+def result_warnings(doc: dict[str, Any]) -> list[str]:
+    """The result's ``diagnostics.warnings`` (strings only; empty when there are none)."""
+    diag = doc.get("diagnostics")
+    warnings = diag.get("warnings") if isinstance(diag, dict) else None
+    return [w for w in warnings if isinstance(w, str)] if isinstance(warnings, list) else []
 
 
 def _valid_interval(v) -> bool:
