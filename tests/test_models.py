@@ -186,3 +186,16 @@ def test_unknown_model_is_refused(crossroads):
         solve(crossroads, np.ones(5) / 5, 1.0, model="softmax")
     with pytest.raises(InputError, match="model must be one of"):
         make_log_likelihood(crossroads, np.zeros((crossroads.n_states, crossroads.n_actions)), model="x")
+
+
+def test_a_solve_that_does_not_converge_is_nan_not_wrong(crossroads):
+    trajs = simulate(crossroads, np.array([0.6, 0.1, 0.1, 0.1, 0.1]), 0.5, 2, np.random.default_rng(0),
+                     max_steps=40)
+    counts = pair_counts(crossroads, trajs)
+    f = make_log_likelihood(crossroads, counts, max_iter=10)
+    assert np.isnan(float(f(np.ones(5) / 5, 0.5)[0]))
+    # The adjoint converges as fast as the forward solve (the constant zero row must not be an
+    # eigenvalue-1 direction): with a cap a little above the forward's sweeps, the gradient is finite.
+    g = jax.grad(lambda t, b: make_log_likelihood(crossroads, counts, max_iter=2000)(t, b)[0],
+                 argnums=(0, 1))(np.ones(5) / 5, 0.5)
+    assert np.all(np.isfinite(np.asarray(g[0]))) and np.isfinite(float(g[1]))

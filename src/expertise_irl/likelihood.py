@@ -47,21 +47,29 @@ def pair_counts(mdp: TabularMDP, trajs: Trajectories) -> np.ndarray:
 
 
 def _iterate(step, x0, gamma, tol, max_iter):
-    """Iterate a γ-contraction to ||x_n+1 - x_n|| <= tol (1-γ)/γ (floored at 8 ulps of |x|)."""
+    """Iterate a γ-contraction to ||x_n+1 - x_n|| <= tol (1-γ)/γ (floored at 8 ulps of |x|).
+
+    Returns ``(x, iterations)``; ``x`` is NaN if ``max_iter`` was reached first, so a solve that
+    did not converge shows as a non-finite likelihood or gradient (MAP rejects the point, NUTS
+    counts a divergence) instead of a silently wrong number.
+    """
     eps = jnp.finfo(x0.dtype).eps
     thresh = tol * (1 - gamma) / gamma
 
+    def unconverged(x, d):
+        return d > jnp.maximum(thresh, 8 * eps * jnp.max(jnp.abs(x)))
+
     def cond(c):
         x, d, k = c
-        return (d > jnp.maximum(thresh, 8 * eps * jnp.max(jnp.abs(x)))) & (k < max_iter)
+        return unconverged(x, d) & (k < max_iter)
 
     def body(c):
         x, _, k = c
         x_new = step(x)
         return x_new, jnp.max(jnp.abs(x_new - x)), k + 1
 
-    x, _, k = jax.lax.while_loop(cond, body, (x0, jnp.inf, 0))
-    return x, k
+    x, d, k = jax.lax.while_loop(cond, body, (x0, jnp.inf, 0))
+    return jnp.where(unconverged(x, d), jnp.nan, x), k
 
 
 def _fixed_point_fn(prep: kernel.Prepared, gamma: float, tol: float, max_iter: int, model: str):
@@ -72,7 +80,9 @@ def _fixed_point_fn(prep: kernel.Prepared, gamma: float, tol: float, max_iter: i
     same fixed point, so implicit differentiation through it is exact), iterated to ``tol``.
     """
     def step(w, v):
-        return kernel.sweep(prep, w, v, gamma, model)[0]
+        # The zero row (terminal states, padding) is a constant 0, not a fixed point of its own:
+        # left as the identity it would give the adjoint an eigenvalue 1 that never decays.
+        return kernel.sweep(prep, w, v, gamma, model)[0].at[-1].set(0.0)
 
     @jax.custom_vjp
     def fixed_point(w, v0):
