@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_cli import assert_input_error, invoke, load, ok, snapshot
 
-from expertise_irl.inference.priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, PRIOR_TEXT
+from expertise_irl.inference.priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, PRIOR_TEXT, PRIORS
 
 
 @pytest.fixture(scope="module")
@@ -85,17 +85,20 @@ def test_short_birl_chain_warns(one_episode, tmp_path):
 # ----------------------------------------------------------------------------- the prior is stated
 def test_prior_is_stated_in_help_output_and_result(one_episode, tmp_path):
     lo, hi = BETA_RANGE
-    words = f"Normal({BETA_PRIOR_MEAN:g}, {BETA_PRIOR_SD:g}) truncated to [{lo:g}, {hi:g}]"
+    paper = f"Normal({BETA_PRIOR_MEAN:g}, {BETA_PRIOR_SD:g}) truncated to [{lo:g}, {hi:g}]"
+    default = "log β uniform on [0.001, 100]"
     help_text = " ".join(invoke("infer", "--help").output.replace("│", " ").split())
-    assert words in help_text
-    readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
-    assert words in readme
-    out = tmp_path / "map.json"
-    result = invoke("infer", "corridor", "--demos", one_episode, "--method", "map", "--starts", "1",
-                    "--out", out)
-    ok(result)
-    assert f"note: prior: {PRIOR_TEXT}" in " ".join(result.stderr.split())
-    assert load(out)["settings"]["prior"] == PRIOR_TEXT
+    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8").split())
+    for words in (paper, default):
+        assert words in help_text and words in readme, words
+    for prior, text in (("log-uniform", PRIOR_TEXT), ("paper", PRIORS["paper"].text)):
+        out = tmp_path / f"map-{prior}.json"
+        result = invoke("infer", "corridor", "--demos", one_episode, "--method", "map", "--starts", "1",
+                        "--prior", prior, "--out", out)
+        ok(result)
+        assert f"note: prior ({prior}): {text}" in " ".join(result.stderr.split())
+        settings = load(out)["settings"]
+        assert settings["prior"] == prior and settings["prior_text"] == text
 
 
 # ----------------------------------------------------------------------------- inputs are never outputs

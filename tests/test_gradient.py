@@ -99,17 +99,21 @@ def test_impossible_observation_is_rejected():
 
 
 # ----------------------------------------------------------------------------- grid reference
-def grid_posterior(mdp, trajs, n_t=201, n_b=160):
+def grid_posterior(mdp, trajs, prior="log-uniform", n_t=201, n_b=160):
     """Exact posterior of (t, β) on a fine grid: θ = (t, 1 − t), t ~ U(0, 1) (the flat
-    Dirichlet), β ~ Normal(5.005, 1.5) truncated to [0.01, 10]; returns the grid, its log
-    posterior and the posterior means (trapezoid rule over t and β)."""
+    Dirichlet), β from ``prior`` (log-uniform: p(β) ∝ 1/β; paper: Normal(5.005, 1.5) truncated
+    to [0.01, 10]); returns the grid, its log posterior and the posterior means (trapezoid
+    rule over t and β)."""
     t = np.linspace(0, 1, n_t)
     b = np.exp(np.linspace(np.log(0.05), np.log(3.0), n_b))
     T, B = np.meshgrid(t, b, indexing="ij")
     theta = np.stack([T.ravel(), 1 - T.ravel()], axis=1)
     sol = solve(mdp, theta, B.ravel(), tol=1e-10)
     ll = log_likelihood(sol.log_policy, trajs.state, trajs.action).reshape(T.shape)
-    lp = ll - 0.5 * ((B - BETA_PRIOR_MEAN) / BETA_PRIOR_SD) ** 2
+    if prior == "paper":
+        lp = ll - 0.5 * ((B - BETA_PRIOR_MEAN) / BETA_PRIOR_SD) ** 2
+    else:
+        lp = ll - np.log(B)
     w = np.exp(lp - lp.max())
     z = np.trapezoid(np.trapezoid(w, b, axis=1), t)
     mean_t = np.trapezoid(np.trapezoid(w * T, b, axis=1), t) / z
@@ -122,11 +126,12 @@ def grid(toy_data):
     return grid_posterior(*toy_data)
 
 
-def test_map_matches_the_grid_optimum(toy_data, grid):
+@pytest.mark.parametrize("prior", ["log-uniform", "paper"])
+def test_map_matches_the_grid_optimum(toy_data, prior):
     mdp, trajs = toy_data
-    T, B, lp, _, _ = grid
+    T, B, lp, _, _ = grid_posterior(*toy_data, prior=prior)
     i = np.unravel_index(np.argmax(lp), lp.shape)
-    res = map_estimate(mdp, trajs, n_starts=3, rng=np.random.default_rng(0))
+    res = map_estimate(mdp, trajs, n_starts=3, rng=np.random.default_rng(0), prior=prior)
     # The grid spacing is 0.005 in t and 2.6% in β: the continuous optimum lies within one
     # cell of the best grid point, and its log-posterior is at least as high.
     assert res.theta[0] == pytest.approx(T[i], abs=0.005)
@@ -175,3 +180,15 @@ def test_bad_options():
         map_estimate(mdp, trajs, n_starts=0, rng=np.random.default_rng(0))
     with pytest.raises(InputError, match="num_chains"):
         nuts_posterior(mdp, trajs, num_chains=0)
+
+
+def test_the_prior_shows_in_the_result():
+    """One expert episode says little about β: the paper's prior pulls β̂ towards 5, the default
+    (log-uniform) does not."""
+    mdp = load_bundled("crossroads").to_mdp()
+    trajs = simulate(mdp, [1.0, 0, 0, 0, 0], 0.05, 1, np.random.default_rng(0))
+    paper = map_estimate(mdp, trajs, n_starts=2, rng=np.random.default_rng(0), prior="paper")
+    default = map_estimate(mdp, trajs, n_starts=2, rng=np.random.default_rng(0))
+    assert paper.beta > 3 * default.beta
+    with pytest.raises(InputError, match="prior must be one of log-uniform, paper"):
+        map_estimate(mdp, trajs, n_starts=1, rng=np.random.default_rng(0), prior="flat")

@@ -227,6 +227,15 @@ def simulate(
     return Trajectories(ep[order], step[order], state[order], action[order])
 
 
+def capped_episodes(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> int:
+    """Episodes that ran to ``max_steps`` actions without entering a terminal state."""
+    if len(trajs) == 0:
+        return 0
+    last = np.flatnonzero(np.append(trajs.episode[1:] != trajs.episode[:-1], True))
+    ended = mdp.terminal[mdp.next_state[trajs.state[last], trajs.action[last]]]
+    return int(np.sum(~ended & (trajs.step[last] + 1 >= max_steps)))
+
+
 # ---------------------------------------------------------------------------- validation
 def _action_label(mdp: TabularMDP, a: int) -> str:
     if mdp.n_actions == len(ACTION_NAMES) and mdp.state_xy is not None and 0 <= a < mdp.n_actions:

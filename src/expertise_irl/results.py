@@ -54,6 +54,7 @@ def discrete_result(belief: DiscreteBelief, *, feature_names, settings: dict[str
         "group_probabilities": belief.group_probabilities(),
         "map": {"theta": _vec(theta_map), "beta": beta_map, "probability": p_map},
         "entropy": belief.entropy,
+        "log_evidence": _num(belief.log_evidence),
         "n_impossible": belief.n_impossible,
         "marginals": {
             "beta": {"values": _vec(betas), "probabilities": _vec(pb)},

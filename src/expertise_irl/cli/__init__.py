@@ -7,7 +7,7 @@ itself on import: ``core`` (demo, simulate, infer, export-mdp, render, maps).
 
 from __future__ import annotations
 
-from . import core, experiment, live, plot  # noqa: F401  (registers the commands)
+from . import core, experiment, live, models, plot  # noqa: F401  (registers the commands)
 from ._app import app, err, out
 
 

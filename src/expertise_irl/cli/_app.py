@@ -132,6 +132,34 @@ def _map_files(map_spec: str | None) -> list[Path]:
     return [Path(map_spec), Path(map_spec).with_suffix(".toml")]
 
 
+#: ``--model``: the observation model (see expertise_irl.models), shared by every command.
+ModelOption = Annotated[str, typer.Option(
+    "--model", help="Observation model: maxent (the paper's; random behaviour earns an entropy "
+    "bonus, so noisy people wander), maxent-relative (entropy relative to a uniform choice: "
+    "noisy people still head for the goal) or boltzmann (softmax of the optimal Q-values).")]
+
+
+def _check_model(model: str) -> str:
+    from ..models import check_model
+
+    return check_model(model, "--model")
+
+
+def _report_capped(trajs, mdp, max_steps: int, model: str) -> int:
+    """Say how many episodes ran to the step cap; warn when most did, and why."""
+    from ..demos import capped_episodes
+
+    n, total = capped_episodes(trajs, mdp, max_steps), trajs.n_episodes
+    if n:
+        _note(f"{n} of {total} episodes hit the {max_steps}-step cap without reaching a goal")
+    if total and n > total / 2:
+        why = ("under the maxent model the entropy bonus pays a person whose β is large next to "
+               "their weights to keep moving rather than finish; --model maxent-relative removes "
+               "that pay" if model == "maxent" else "the person is too noisy for this map and cap")
+        _warn(f"most episodes ({n} of {total}) never reached a goal: {why}")
+    return n
+
+
 def _warn(message: str) -> None:
     """A warning on stderr (one line per warning)."""
     err.print("[bold yellow]warning:[/] ", end="", highlight=False)

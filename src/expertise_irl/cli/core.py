@@ -13,12 +13,15 @@ from rich.table import Table
 
 from ..errors import InputError
 from ._app import (
+    ModelOption,
     _check_beta,
+    _check_model,
     _load_mdp,
     _map_files,
     _note,
     _parse_theta,
     _progress,
+    _report_capped,
     _say,
     _solve_progress,
     _warn,
@@ -43,6 +46,7 @@ def demo(
     ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Episodes the simulated person demonstrates.")] = 20,
     k: Annotated[int, typer.Option(min=1, help="Preference vectors in the hypothesis set Θ_k.")] = 20,
+    model: ModelOption = "maxent",
     force: Annotated[bool, typer.Option("--force", help="Overwrite this seed's figure and result.")] = False,
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
@@ -51,6 +55,7 @@ def demo(
     from ..worlds.render import render_demo_png
     from ..worlds.zones import resolve_map
 
+    _check_model(model)
     zone_map = resolve_map(map_spec) if map_spec else None
     if zone_map is not None:
         zone_map.to_mdp()  # validate the map before any output is started
@@ -62,7 +67,7 @@ def demo(
         check_writable(p, force=force, inputs=_map_files(map_spec))
     t0 = time.perf_counter()
     with _progress() as bar:
-        run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k,
+        run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k, model=model,
                        progress=_solve_progress(bar, "solving soft value iteration"))
     elapsed = time.perf_counter() - t0
     s = run.summary()
@@ -88,13 +93,14 @@ def demo(
     doc = discrete_result(
         b, feature_names=names,
         settings={"command": "demo", "seed": seed, "map": run.zone_map.name, "episodes": episodes,
-                  "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim",
+                  "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim", "model": model,
                   "gamma": run.mdp.gamma, "goal_bonus": run.zone_map.goal_bonus},
         data={"episodes": run.trajectories.n_episodes, "actions": len(run.trajectories)},
     )
     doc["truth"] = {"theta": s["theta_true"], "beta": s["beta_true"], "group": s["group_true"],
                     "probability": s["truth_probability"]}
     doc["metrics"] = {k_: s[k_] for k_ in ("expertise_distance", "cosine_similarity", "policy_regret")}
+    doc["data"]["capped_episodes"] = _report_capped(run.trajectories, run.mdp, run.max_steps, model)
     doc["run_time_s"] = elapsed
     write_json(js, doc)
     _say(f"wrote {png} and {js} ({elapsed:.1f} s)")
@@ -129,9 +135,14 @@ def simulate(
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (actions).")] = 500,
+    model: ModelOption = "maxent",
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
-    """Simulate a max-entropy person with preferences θ* and expertise β*; write demonstrations CSV."""
+    """Simulate a person with preferences θ* and expertise β*; write demonstrations CSV.
+
+    The person acts by --model (default maxent, the paper's). Episodes that run to --max-steps
+    without reaching a goal are counted on stderr.
+    """
     from ..demos import simulate as simulate_episodes
     from ..demos import write_demos_csv
     from ..results import check_writable
@@ -140,10 +151,13 @@ def simulate(
     mdp, _ = _load_mdp(map_spec, mdp_path)
     th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
     _check_beta(beta)
-    trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps)
+    _check_model(model)
+    trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps,
+                              model=model)
     write_demos_csv(out_path, trajs, mdp)
     _say(f"wrote {out_path}: {trajs.n_episodes} episodes, {len(trajs)} actions "
-              f"(θ*={np.round(th, 4).tolist()}, β*={beta:g})")
+         f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, model {model})")
+    _report_capped(trajs, mdp, max_steps, model)
 
 
 @app.command()
@@ -171,8 +185,12 @@ def infer(
         min=1, help="Hypotheses in flight at once in the solver (default: sized to the map).")] = None,
     method: Annotated[str, typer.Option(
         help="discrete (hypothesis set, Eq. 13), birl (Algorithm 1), map (L-BFGS on the simplex) "
-        "or nuts (full posterior). birl, map and nuts use the paper's prior: θ uniform, "
-        "β ~ Normal(5.005, 1.5) truncated to [0.01, 10].")] = "discrete",
+        "or nuts (full posterior).")] = "discrete",
+    model: ModelOption = "maxent",
+    prior: Annotated[str, typer.Option(
+        help="birl, map, nuts: the prior. log-uniform (default): θ uniform, log β uniform on "
+        "[0.001, 100]; paper (Sec. VII-A): θ uniform, β ~ Normal(5.005, 1.5) truncated to "
+        "[0.01, 10], which pulls β̂ towards 5.")] = "log-uniform",
     iterations: Annotated[int, typer.Option(min=1, help="birl: iterations K.")] = 1000,
     delta: Annotated[float, typer.Option(help="birl: θ grid step δ.")] = 0.05,
     beta_step: Annotated[float, typer.Option(help="birl: β grid step.")] = 0.1,
@@ -187,10 +205,11 @@ def infer(
 
     The default method is the paper's discrete hypothesis set (Eq. 13, uniform prior over
     the set); birl, map and nuts search the continuous space (θ on the simplex or box,
-    β > 0) under the paper's prior (Sec. VII-A): θ uniform, β ~ Normal(5.005, 1.5)
-    truncated to [0.01, 10], so β̂ is pulled towards 5 when the data say little.
-    --seed makes every method reproducible. Convergence warnings go to stderr and to the
-    result's diagnostics.warnings.
+    β > 0) under --prior: by default log-uniform (θ uniform, log β uniform on [0.001, 100]),
+    or the paper's (Sec. VII-A: β ~ Normal(5.005, 1.5) truncated to [0.01, 10]) with
+    --prior paper. --model chooses the observation model for every method. --seed makes
+    every method reproducible. Convergence warnings go to stderr and to the result's
+    diagnostics.warnings.
     """
     from ..demos import read_demos_csv
     from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
@@ -212,7 +231,8 @@ def infer(
         from ..inference.continuous import MethodOptions
 
         opts = MethodOptions(iterations=iterations, delta=delta, beta_step=beta_step, variant=variant,
-                             starts=starts, chains=chains, warmup=warmup, samples=samples)
+                             starts=starts, chains=chains, warmup=warmup, samples=samples, prior=prior,
+                             model=model)
         _infer_continuous(method, mdp, zone_map, trajs, opts, seed=seed, out_path=out_path, force=force,
                           inputs=[demos, *_map_files(map_spec), mdp_path],
                           source={"mdp": str(mdp_path) if mdp_path else str(map_spec),
@@ -228,10 +248,10 @@ def infer(
     hyp = HypothesisSet(th, resolve_betas(betas))
     t0 = time.perf_counter()
     with _progress() as bar:
-        prior = DiscreteBelief.from_mdp(mdp, hyp, tol=tol, chunk_size=chunk_size,
+        start = DiscreteBelief.from_mdp(mdp, hyp, tol=tol, chunk_size=chunk_size, model=model,
                                         progress=_solve_progress(bar, "solving soft value iteration"))
-    post = prior.update(trajs, per_action=per_action)
-    trace = prior.trace(trajs) if per_action else None
+    post = start.update(trajs, per_action=per_action)
+    trace = start.trace(trajs) if per_action else None
     elapsed = time.perf_counter() - t0
     settings = {
         "command": "infer", "method": "discrete",
@@ -241,7 +261,7 @@ def infer(
         "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
         "thetas": thetas, "betas": betas, "sample_thetas": sample_thetas, "seed": seed,
         "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
-        "prior": "uniform", "per_action": per_action, "tol": tol, "gamma": mdp.gamma,
+        "prior": "uniform", "model": model, "per_action": per_action, "tol": tol, "gamma": mdp.gamma,
     }
     doc = discrete_result(post, feature_names=mdp.feature_names, settings=settings,
                           data={"episodes": trajs.n_episodes, "actions": len(trajs)},
@@ -264,21 +284,25 @@ MAX_TOL = 0.1  # nats; a looser tolerance would make the log-likelihoods meaning
 #: The options that only some methods read (the others refuse them when given).
 METHOD_OPTIONS = {
     "discrete": ("thetas", "betas", "sample_thetas", "per_action", "tol", "chunk_size"),
-    "birl": ("iterations", "delta", "beta_step", "variant"),
-    "map": ("starts",),
-    "nuts": ("chains", "warmup", "samples"),
+    "birl": ("iterations", "delta", "beta_step", "variant", "prior"),
+    "map": ("starts", "prior"),
+    "nuts": ("chains", "warmup", "samples", "prior"),
 }
 
 
 def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:
-    for other, names in METHOD_OPTIONS.items():
-        if other == method:
-            continue
+    owners: dict[str, list[str]] = {}
+    for m, names in METHOD_OPTIONS.items():
         for name in names:
-            source = ctx.get_parameter_source(name)  # typer's own click: compare by name
-            if source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP"):
-                flag = "--" + name.replace("_", "-")
-                raise InputError(f"{flag} applies only to --method {other}, not to --method {method}")
+            owners.setdefault(name, []).append(m)
+    for name, methods in owners.items():
+        if method in methods:
+            continue
+        source = ctx.get_parameter_source(name)  # typer's own click: compare by name
+        if source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP"):
+            flag = "--" + name.replace("_", "-")
+            which = " or ".join(f"--method {m}" for m in methods)
+            raise InputError(f"{flag} applies only to {which}, not to --method {method}")
 
 
 def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, force, source,
@@ -286,7 +310,7 @@ def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, for
     from dataclasses import asdict
 
     from ..inference.continuous import run_method
-    from ..inference.priors import PRIOR_TEXT
+    from ..inference.priors import PRIORS
     from ..results import INLINE_DRAWS, check_writable, continuous_result, samples_path_for, write_json
 
     samples_path = samples_path_for(out_path)
@@ -294,7 +318,8 @@ def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, for
             method == "birl" and opts.iterations > INLINE_DRAWS):
         check_writable(samples_path, force=force, inputs=inputs)
     opts.validate()
-    _note(f"prior: {PRIOR_TEXT}")
+    prior_text = PRIORS[opts.prior].text
+    _note(f"prior ({opts.prior}): {prior_text}; model {opts.model}")
     if method == "nuts":  # NumPyro draws its own bar (all chains advance together)
         res = run_method(method, mdp, trajs, opts, seed, progress=lambda done, total: None)
     else:
@@ -303,7 +328,7 @@ def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, for
             res = run_method(method, mdp, trajs, opts, seed, progress=_solve_progress(bar, label))
     settings = {"command": "infer", "method": method, **source, "seed": seed, **asdict(opts),
                 "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-                "gamma": mdp.gamma, "prior": PRIOR_TEXT}
+                "gamma": mdp.gamma, "prior_text": prior_text}
     doc = continuous_result(res, method=method, feature_names=mdp.feature_names, settings=settings,
                             data={"episodes": trajs.n_episodes, "actions": len(trajs)},
                             samples_path=samples_path)

@@ -28,6 +28,7 @@ from ..hypotheses import (
 from ..inference.belief import DiscreteBelief
 from ..mdp import TabularMDP
 from ..metrics import cosine_similarity, expertise_distance, policy_regret
+from ..models import DEFAULT_MODEL
 from ..worlds.zones import ZoneMap, generate_map, resolve_map
 
 DEFAULT_EPISODES = 20
@@ -48,6 +49,8 @@ class DemoRun:
     trajectories: Trajectories
     belief: DiscreteBelief
     metrics: dict[str, float]
+    #: The observation model the person acts by and the inference assumes.
+    model: str = DEFAULT_MODEL
     #: Episode length cap of the simulation (actions); an episode that reaches it is cut.
     max_steps: int = DEFAULT_MAX_STEPS
 
@@ -79,11 +82,13 @@ def run_demo(
     episodes: int = DEFAULT_EPISODES,
     k: int = DEFAULT_K,
     progress: Callable[[int, int], None] | None = None,
+    model: str = DEFAULT_MODEL,
 ) -> DemoRun:
     """Run the demo job deterministically from ``seed`` (no files written).
 
     The map is ``zone_map`` if given, else ``map_spec`` (a file or bundled name), else a
-    random map generated from the seed.
+    random map generated from the seed. ``model`` is the observation model of the simulated
+    person and of the inference (:mod:`expertise_irl.models`).
     """
     map_seq, set_seq, truth_seq, sim_seq = np.random.SeedSequence(seed).spawn(4)
     if zone_map is None and map_spec is not None:
@@ -99,7 +104,7 @@ def run_demo(
     rng_truth = np.random.default_rng(truth_seq)
     theta_true = hyp.thetas[int(rng_truth.integers(hyp.n_theta))]
     beta_true = float(hyp.betas[int(rng_truth.integers(hyp.n_beta))])
-    prior = DiscreteBelief.from_mdp(mdp, hyp, progress=progress)
+    prior = DiscreteBelief.from_mdp(mdp, hyp, progress=progress, model=model)
     truth = hyp.index(theta_true, beta_true)
     assert truth is not None
     trajs = simulate(mdp, theta_true, beta_true, episodes, np.random.default_rng(sim_seq),
@@ -108,9 +113,9 @@ def run_demo(
     metrics = {
         "expertise_distance": expertise_distance(beta_true, post.mean_beta),
         "cosine_similarity": cosine_similarity(theta_true, post.mean_theta),
-        "policy_regret": policy_regret(mdp, theta_true, beta_true, post.mean_theta),
+        "policy_regret": policy_regret(mdp, theta_true, beta_true, post.mean_theta, model=model),
     }
-    return DemoRun(zone_map, mdp, hyp, theta_true, beta_true, trajs, post, metrics,
+    return DemoRun(zone_map, mdp, hyp, theta_true, beta_true, trajs, post, metrics, model=model,
                    max_steps=DEFAULT_MAX_STEPS)
 
 

@@ -124,7 +124,8 @@ class DiscreteBelief:
     ) -> DiscreteBelief:
         """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
 
-        ``solve_kwargs`` go to :func:`~expertise_irl.planning.solve` (tol, chunk_size, progress...).
+        ``solve_kwargs`` go to :func:`~expertise_irl.planning.solve` (tol, chunk_size, progress,
+        model...).
         """
         if hypotheses.thetas.shape[1] != mdp.n_features:
             raise InputError(
@@ -205,6 +206,17 @@ class DiscreteBelief:
         return b
 
     # -------------------------------------------------------------- posterior
+    @property
+    def log_evidence(self) -> float:
+        """log P(Ξ) = log Σ_h P(Ξ | h) P(h): the model evidence of everything observed (nats).
+
+        Comparing it across observation models (or hypothesis sets) on the same
+        demonstrations gives their Bayes factors; −∞ if no hypothesis can produce them.
+        """
+        from scipy.special import logsumexp
+
+        return float(logsumexp(self.log_prior + self.log_likelihood))
+
     @property
     def log_posterior(self) -> np.ndarray:
         """``[H]`` normalised log posterior."""

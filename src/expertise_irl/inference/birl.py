@@ -65,9 +65,11 @@ fixed function of the point, so re-proposing a point (frequent after rejections)
 no solve. When the chain moves to a cached point the warm start stays the value function
 of the last solved point on the chain's path, a few lattice steps away.
 
-Prior. Pluggable ``log_prior(theta, beta) -> float`` (up to a constant; −∞ = excluded).
-Default (Sec. VII-A): θ uniform (constant on the lattice), β ~ Normal(5.005, 1.5)
-truncated to [0.01, 10].
+Prior. Pluggable ``log_prior(theta, beta) -> float`` (up to a constant; −∞ = excluded), or
+a named one (``prior``, :mod:`expertise_irl.inference.priors`): ``"log-uniform"`` (the
+default: θ uniform on the lattice, p(β) ∝ 1/β on the lattice's β range) or ``"paper"``
+(Sec. VII-A: θ uniform, β ~ Normal(5.005, 1.5) truncated to [0.01, 10]), which the
+reproduction of the paper passes explicitly.
 
 Output. The chain (start included), its log posterior, acceptance rate (accepted moves /
 iterations, out-of-bounds proposals counting as rejections), the posterior mean after
@@ -101,8 +103,9 @@ import numpy as np
 from ..demos import Trajectories, validate
 from ..errors import InputError
 from ..mdp import TabularMDP
+from ..models import DEFAULT_MODEL, check_model
 from ..planning import solve
-from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE
+from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, DEFAULT_PRIOR, get_prior, log_prior_numpy
 
 VARIANTS = ("box", "simplex")
 MOVES = ("both", "either")
@@ -119,10 +122,7 @@ def paper_log_prior(theta: np.ndarray, beta: float) -> float:
 
     The paper's θ prior, uniform on [0, 1]^K, is flat on the default box (θmax = 1).
     """
-    mu, sigma, lo, hi = PAPER_BETA_PRIOR
-    if not lo <= beta <= hi * (1 + _GRID_RTOL) or np.any(np.asarray(theta) < 0):
-        return -math.inf
-    return -0.5 * ((beta - mu) / sigma) ** 2
+    return log_prior_numpy("paper", theta, beta)
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,6 +276,8 @@ def extended_birl(
     warm_start: bool = True,
     cache: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    prior: str = DEFAULT_PRIOR,
+    model: str = DEFAULT_MODEL,
 ) -> BIRLResult:
     """Sample P(θ, β | Ξ) with Algorithm 1 (see the module docstring for every choice made).
 
@@ -289,7 +291,10 @@ def extended_birl(
         variant: ``"box"`` (as printed) or ``"simplex"`` (‖θ‖₁ = 1).
         moves: ``"both"`` (θ and β each step, as printed) or ``"either"`` (one of them);
             default ``"both"`` for the box, ``"either"`` for the simplex.
-        log_prior: ``log_prior(theta, beta) -> float``; default :func:`paper_log_prior`.
+        log_prior: ``log_prior(theta, beta) -> float``; default: the prior named ``prior``.
+        prior: ``"log-uniform"`` (default) or ``"paper"`` (:func:`paper_log_prior`), restricted
+            to ``beta_range``; ignored when ``log_prior`` is given.
+        model: the observation model (:mod:`expertise_irl.models`).
         burn_in: fraction of the chain discarded before the means.
         rng: numpy Generator (or a seed) for all randomness.
         tol: solver tolerance (nats on V/β; log-likelihood error ≤ 2·tol per pair).
@@ -302,7 +307,14 @@ def extended_birl(
     """
     rng = _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam, variant, moves,
                       log_prior, burn_in, rng, tol)
-    prior = paper_log_prior if log_prior is None else log_prior
+    get_prior(prior)
+    check_model(model)
+    if log_prior is None:
+        b_range = (float(beta_range[0]), float(beta_range[1]))
+
+        def log_prior(theta, beta, _name=prior, _range=b_range):
+            return log_prior_numpy(_name, theta, beta, _range)
+    prior_fn = log_prior
     if moves is None:
         moves = "both" if variant == "box" else "either"
     K = mdp.n_features
@@ -351,7 +363,7 @@ def extended_birl(
             return known[key], None
         b = beta_of(j)
         v0 = warm["v"][None] * (b / warm["beta"]) if warm_start and warm["v"] is not None else None
-        sol = solve(mdp, theta_of(m), b, tol=tol, v_init=v0)
+        sol = solve(mdp, theta_of(m), b, tol=tol, v_init=v0, model=model)
         stats["solves"] += 1
         stats["sweeps"] += int(sol.iterations[0])
         ll = float(np.sum(counts * sol.log_policy[0, pair_s, pair_a]))
@@ -360,7 +372,7 @@ def extended_birl(
         return ll, sol.value[0]
 
     def log_prior_at(m: np.ndarray, j: int) -> float:
-        lp = float(prior(theta_of(m), beta_of(j)))
+        lp = float(prior_fn(theta_of(m), beta_of(j)))
         if math.isnan(lp) or lp == math.inf:
             raise InputError(f"log_prior returned {lp} at theta={theta_of(m).tolist()}, beta={beta_of(j):g}")
         return lp

@@ -19,8 +19,9 @@ import numpy as np
 from ..demos import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
+from ..models import DEFAULT_MODEL, check_model
 from .diagnostics import birl_warnings, chain_statistics, map_unavailable, map_warnings, nuts_warnings
-from .priors import BETA_RANGE
+from .priors import BETA_RANGE, DEFAULT_PRIOR, PRIORS
 
 METHODS = ("discrete", "birl", "map", "nuts")
 CREDIBLE = 0.9
@@ -38,6 +39,8 @@ class MethodOptions:
     chains: int = 4  # nuts
     warmup: int = 500  # nuts
     samples: int = 500  # nuts: draws per chain
+    prior: str = DEFAULT_PRIOR  # birl, map, nuts: "log-uniform" or "paper"
+    model: str = DEFAULT_MODEL  # observation model
 
 
     def validate(self) -> None:
@@ -56,6 +59,9 @@ class MethodOptions:
                              f"[{lo:g}, {hi:g}]")
         if self.variant not in VARIANTS:
             raise InputError(f"--variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
+        if self.prior not in PRIORS:
+            raise InputError(f"--prior must be one of {', '.join(PRIORS)}, got {self.prior!r}")
+        check_model(self.model, "--model")
 
 
 def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOptions,
@@ -77,7 +83,8 @@ def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOp
 
         r = extended_birl(mdp, trajs, n_iter=opts.iterations, delta=opts.delta,
                           beta_step=opts.beta_step, variant=opts.variant,
-                          rng=np.random.default_rng(seed), progress=progress)
+                          rng=np.random.default_rng(seed), progress=progress, prior=opts.prior,
+                          model=opts.model)
         keep = slice(r.n_burn, None)
         theta, beta = r.theta[keep], r.beta[keep]
         stats = chain_statistics(theta, beta, halves=True)  # one chain: R-hat compares its halves
@@ -101,10 +108,10 @@ def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOp
         from .gradient import map_estimate
 
         r = map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed),
-                         progress=progress)
+                         progress=progress, prior=opts.prior, model=opts.model)
         diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
                 "unavailable": map_unavailable(opts.starts)}
-        diag["warnings"] = map_warnings(diag, r.beta, BETA_RANGE)
+        diag["warnings"] = map_warnings(diag, r.beta, PRIORS[opts.prior].beta_range)
         out = {
             "theta_hat": r.theta.tolist(), "beta_hat": r.beta,
             "map": {"theta": r.theta.tolist(), "beta": r.beta, "log_posterior": r.log_posterior},
@@ -114,7 +121,8 @@ def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOp
         from .gradient import nuts_posterior
 
         r = nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
-                           num_chains=opts.chains, seed=seed, progress_bar=progress is not None)
+                           num_chains=opts.chains, seed=seed, progress_bar=progress is not None,
+                           prior=opts.prior, model=opts.model)
         C, D, K = r.theta.shape
         theta, beta = r.theta.reshape(-1, K), r.beta.reshape(-1)
         best = int(np.argmax(r.log_density.reshape(-1)))
