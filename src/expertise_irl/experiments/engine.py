@@ -7,10 +7,11 @@ the rows of its instances; the randomness of an instance comes from
 ``np.random.SeedSequence(entropy=seed, spawn_key=identity)`` (:func:`seed_sequence`), so the
 rows never depend on the order of tasks, the number of workers, the grouping or the engine.
 
-Engines: a local process pool (``spawn`` start method: JAX is not fork-safe; a pool whose
-worker dies is rebuilt and the unfinished tasks re-run) or a Dask ``distributed`` cluster
-when a scheduler address is given (tasks are submitted with ``retries``). Workers return
-rows; this process writes them (:mod:`.store`), so workers need no access to DIR.
+Engines (:mod:`.workers`): a local process pool (``spawn`` start method: JAX is not
+fork-safe; a pool whose worker dies is rebuilt and the unfinished tasks re-run) or a Dask
+``distributed`` cluster when a scheduler address is given (tasks are submitted with
+``retries``). Workers return rows; this process writes them (:mod:`.store`), so workers need
+no access to DIR.
 """
 
 from __future__ import annotations
@@ -18,11 +19,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import signal
-import socket
 import time
-import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,15 +29,18 @@ import numpy as np
 
 from ..errors import InputError
 from .store import LAYOUT_VERSION, Store, config_hash, machine, to_toml, versions, write_atomic
+from .workers import (  # noqa: F401  (FAULTS_ENV, JAX_CACHE_ENV, execute_task: public here too)
+    FAULTS_ENV,
+    JAX_CACHE_ENV,
+    TaskResult,
+    _dask_results,
+    _error_info,
+    _faults,
+    _kill_self,
+    _local_results,
+    execute_task,
+)
 
-#: Environment variable read by the engine to inject faults (tests only); see :func:`_faults`.
-FAULTS_ENV = "EXPERTISE_IRL_FAULTS"
-#: Environment variable naming the directory of JAX's persistent compilation cache (or ``off``).
-JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
-#: Attempts the local pool gives a task whose worker process died before it gives up.
-LOCAL_ATTEMPTS = 3
-#: Dask ``retries`` for every task.
-DASK_RETRIES = 2
 SCALES = ("smoke", "small", "paper")
 
 
@@ -137,181 +138,8 @@ def config_from_dict(study: Study, values: dict[str, Any]):
     return study.config_type(**kwargs)
 
 
-# ------------------------------------------------------------------------ worker side
-def _faults() -> list[tuple[str, str]]:
-    """Faults to inject, from ``EXPERTISE_IRL_FAULTS`` (comma-separated ``kind:arg``).
-
-    Worker side: ``raise:KEY`` (the task raises), ``die:KEY:MARKER`` (the worker process exits
-    abruptly the first time, creating file MARKER). Driver side: ``kill-at-start``,
-    ``kill-after:N`` (SIGKILL after N shards were committed), ``kill-in-write:N`` (SIGKILL
-    halfway through writing shard N + 1).
-    """
-    spec = os.environ.get(FAULTS_ENV, "")
-    out = []
-    for item in filter(None, (s.strip() for s in spec.split(","))):
-        kind, _, arg = item.partition(":")
-        out.append((kind, arg))
-    return out
-
-
 def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-
-
-_JAX_CACHE_READY = False
-
-
-def _jax_cache() -> None:
-    """Let worker processes share compiled solver kernels through JAX's persistent cache.
-
-    Every worker would otherwise compile the same kernels again (seconds per map and batch
-    shape). ``EXPERTISE_IRL_JAX_CACHE`` names the directory (default
-    ``~/.cache/expertise-irl/jax``); ``off`` disables it.
-    """
-    global _JAX_CACHE_READY
-    if _JAX_CACHE_READY:
-        return
-    _JAX_CACHE_READY = True
-    where = os.environ.get(JAX_CACHE_ENV, "")
-    if where.lower() == "off":
-        return
-    if not where:
-        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        where = os.path.join(base, "expertise-irl", "jax")
-    try:
-        os.makedirs(where, exist_ok=True)
-    except OSError:
-        return
-    import jax
-
-    jax.config.update("jax_compilation_cache_dir", where)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-
-
-def _kill_self() -> None:
-    os.kill(os.getpid(), signal.SIGKILL)
-
-
-@dataclass
-class TaskResult:
-    key: str
-    columns: dict[str, np.ndarray] | None
-    stats: dict[str, Any]
-    error: dict[str, str] | None = None
-
-
-def execute_task(study_name: str, config: dict[str, Any], seed: int, key: str,
-                 params: dict[str, Any]) -> TaskResult:
-    """Run one task in this process (the function the engines ship to workers)."""
-    from .studies import get_study
-
-    for kind, arg in _faults():
-        if kind == "raise" and arg == key:
-            raise RuntimeError(f"injected failure in task {key}")
-        if kind == "die":
-            target, _, marker = arg.partition(":")
-            if target == key and not os.path.exists(marker):
-                Path(marker).touch()
-                os._exit(17)
-    _jax_cache()
-    study = get_study(study_name)
-    cfg = config_from_dict(study, config)
-    t0 = time.perf_counter()
-    columns, stats = study.run_task(cfg, seed, params)
-    stats = {**stats, "wall_time_s": time.perf_counter() - t0, "host": socket.gethostname(),
-             "pid": os.getpid()}
-    return TaskResult(key, columns, stats)
-
-
-def _exit_with_parent(parent: int) -> None:
-    """Pool initializer: end this worker when the process that started it is gone (e.g. killed)."""
-    import threading
-
-    def watch() -> None:
-        while True:
-            time.sleep(0.5)
-            if os.getppid() != parent:
-                os._exit(3)
-
-    threading.Thread(target=watch, daemon=True).start()
-
-
-def _error_info(exc: BaseException) -> dict[str, str]:
-    return {"error_type": type(exc).__name__, "message": str(exc),
-            "traceback": "".join(traceback.format_exception(exc))}
-
-
-# ---------------------------------------------------------------------------- engines
-def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[TaskResult]:
-    """Run tasks on a ``spawn`` process pool; rebuild the pool if a worker dies.
-
-    If the caller stops early (an error, Ctrl-C) the queued tasks are cancelled and the
-    workers terminated rather than waited for.
-    """
-    import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
-    attempts = dict.fromkeys((t.key for t in todo), 0)
-    pending = list(todo)
-    ctx = mp.get_context("spawn")
-    while pending:
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
-                                   initializer=_exit_with_parent, initargs=(os.getpid(),))
-        futures = {}
-        try:
-            for t in pending:
-                attempts[t.key] += 1
-                futures[pool.submit(execute_task, *job, t.key, t.params)] = t
-            pending = []
-            while futures:
-                done, _ = wait(futures, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    t = futures.pop(fut)
-                    try:
-                        res = fut.result()
-                    except BrokenProcessPool as exc:
-                        if attempts[t.key] < LOCAL_ATTEMPTS:
-                            pending.append(t)
-                            continue
-                        res = TaskResult(t.key, None, {}, _error_info(RuntimeError(
-                            f"worker process died {attempts[t.key]} times running this task ({exc})")))
-                    except Exception as exc:
-                        res = TaskResult(t.key, None, {}, _error_info(exc))
-                    yield res
-        finally:
-            if futures:  # stopped early: do not wait for the rest
-                pool.shutdown(wait=False, cancel_futures=True)
-                procs = getattr(pool, "_processes", None) or {}
-                for proc in list(procs.values()):
-                    proc.terminate()
-            else:
-                pool.shutdown(wait=True)
-
-
-def _dask_results(todo: list[TaskSpec], job: tuple, address: str) -> Iterator[TaskResult]:
-    """Run tasks on a Dask distributed cluster (``retries`` re-runs failed attempts)."""
-    from distributed import Client, as_completed
-
-    try:
-        client = Client(address, timeout="20s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError(f"--scheduler {address}: cannot connect to a Dask scheduler ({exc})") from None
-    with client:
-        token = os.urandom(4).hex()
-        futures = {}
-        for t in todo:
-            fut = client.submit(execute_task, *job, t.key, t.params, key=f"{job[0]}-{t.key}-{token}",
-                                pure=False, retries=DASK_RETRIES)
-            futures[fut] = t
-        for fut in as_completed(futures):
-            t = futures[fut]
-            try:
-                yield fut.result()
-            except Exception as exc:
-                yield TaskResult(t.key, None, {}, _error_info(exc))
-            fut.release()
 
 
 # ----------------------------------------------------------------------------- driver
