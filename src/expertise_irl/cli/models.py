@@ -57,7 +57,8 @@ def compare_models_command(
     table = Table(title=escape(f"{len(hyp)} hypotheses, {trajs.n_episodes} episodes, {len(trajs)} actions"))
     for col in ("model", "log evidence", "log BF vs best", "reading", "held-out log-lik / action",
                 "β̂", "group"):
-        table.add_column(col, justify="left" if col in ("model", "reading", "group") else "right")
+        table.add_column(col, justify="left" if col in ("model", "reading", "group") else "right",
+                         no_wrap=col == "model")
     for f in cmp.fits:
         held = "n/a" if f.heldout_per_action is None else f"{f.heldout_per_action:.4f}"
         table.add_row(f.model, f"{f.log_evidence:.2f}", f"{f.log_bayes_factor:.2f}", f.strength, held,
