@@ -25,6 +25,8 @@ _EXPORTS = {
     "BETA_PRESETS": ".hypotheses", "THETA_PRESETS": ".hypotheses", "HypothesisSet": ".hypotheses",
     "expertise_group": ".hypotheses", "theta_grid": ".hypotheses",
     "DiscreteBelief": ".inference.belief",
+    "OnlineEstimator": ".inference.online", "next_start": ".inference.active",
+    "compare_models": ".inference.evidence", "MODELS": ".models",
     "extended_birl": ".inference.birl", "BIRLResult": ".inference.birl",
     "map_estimate": ".inference.gradient", "MAPResult": ".inference.gradient",
     "nuts_posterior": ".inference.gradient", "NUTSResult": ".inference.gradient",
@@ -37,6 +39,7 @@ _EXPORTS = {
 
 __all__ = [
     "BETA_PRESETS",
+    "MODELS",
     "THETA_PRESETS",
     "BIRLResult",
     "ConvergenceError",
@@ -45,11 +48,13 @@ __all__ = [
     "InputError",
     "MAPResult",
     "NUTSResult",
+    "OnlineEstimator",
     "SoftSolution",
     "TabularMDP",
     "Trajectories",
     "ZoneMap",
     "__version__",
+    "compare_models",
     "cosine_similarity",
     "expertise_distance",
     "expertise_group",
@@ -58,6 +63,7 @@ __all__ = [
     "load_bundled",
     "load_map",
     "map_estimate",
+    "next_start",
     "nuts_posterior",
     "parse_map",
     "policy_regret",
@@ -86,10 +92,14 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .demos import Trajectories, read_demos_csv, simulate, write_demos_csv
     from .errors import ConvergenceError, InputError
     from .hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, expertise_group, theta_grid
+    from .inference.active import next_start
     from .inference.belief import DiscreteBelief
     from .inference.birl import BIRLResult, extended_birl
+    from .inference.evidence import compare_models
     from .inference.gradient import MAPResult, NUTSResult, map_estimate, nuts_posterior
+    from .inference.online import OnlineEstimator
     from .mdp import TabularMDP
     from .metrics import cosine_similarity, expertise_distance, policy_regret
+    from .models import MODELS
     from .planning import SoftSolution, solve
     from .worlds.zones import ZoneMap, generate_map, load_bundled, load_map, parse_map
