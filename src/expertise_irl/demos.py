@@ -111,19 +111,24 @@ def _check_log_policy(mdp: TabularMDP, log_policy) -> np.ndarray:
     return lp
 
 
-def _check_starts(mdp: TabularMDP, starts) -> np.ndarray:
+def check_start_states(mdp: TabularMDP, starts, what: str = "starts") -> np.ndarray:
+    """``starts`` as an int array of non-terminal states (default: ``mdp.initial_states()``).
+
+    :class:`InputError` named after ``what`` for an empty list, a non-integer, an index out of
+    range or a terminal state.
+    """
     if starts is None:
         return np.asarray(mdp.initial_states(), dtype=np.int64)
-    st = np.asarray(starts)
+    st = np.atleast_1d(np.asarray(starts))
     if st.ndim != 1 or st.size == 0 or not np.issubdtype(st.dtype, np.integer):
-        raise InputError("starts must be a non-empty 1-D array of state indices")
+        raise InputError(f"{what} must be a non-empty 1-D array of state indices")
     st = st.astype(np.int64)
     out = (st < 0) | (st >= mdp.n_states)
     if out.any():
-        raise InputError(f"starts: {int(st[out][0])} is not a state index in [0, {mdp.n_states})")
+        raise InputError(f"{what}: {int(st[out][0])} is not a state index in [0, {mdp.n_states})")
     term = mdp.terminal[st]
     if term.any():
-        raise InputError(f"starts: {mdp.describe_state(int(st[term][0]))} is terminal (a goal)")
+        raise InputError(f"{what}: {mdp.describe_state(int(st[term][0]))} is terminal (a goal)")
     return st
 
 
@@ -191,7 +196,7 @@ def simulate(
         if theta is not None or beta is not None:
             _check_hypothesis(mdp, theta, beta)
     lp = _check_log_policy(mdp, log_policy)
-    st = _check_starts(mdp, starts)
+    st = check_start_states(mdp, starts)
     if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) or n_episodes < 0:
         raise InputError(f"n_episodes must be an integer >= 0, got {n_episodes!r}")
     if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:

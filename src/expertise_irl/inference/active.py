@@ -28,6 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..demos import check_start_states
 from ..errors import InputError
 from ..mdp import TabularMDP
 from .belief import DiscreteBelief
@@ -76,19 +77,7 @@ def _resolve(belief, mdp: TabularMDP | None) -> tuple[DiscreteBelief, TabularMDP
 
 
 def _check_candidates(mdp: TabularMDP, candidates) -> np.ndarray:
-    if candidates is None:
-        return np.asarray(mdp.initial_states(), dtype=np.int64)
-    c = np.atleast_1d(np.asarray(candidates))
-    if c.ndim != 1 or c.size == 0 or not np.issubdtype(c.dtype, np.integer):
-        raise InputError("candidates must be a non-empty list of state indices")
-    c = c.astype(np.int64)
-    bad = (c < 0) | (c >= mdp.n_states)
-    if bad.any():
-        raise InputError(f"candidate {int(c[bad][0])} is not a state index in [0, {mdp.n_states})")
-    term = mdp.terminal[c]
-    if term.any():
-        raise InputError(f"candidate {mdp.describe_state(int(c[term][0]))} is terminal (a goal)")
-    return np.unique(c)
+    return np.unique(check_start_states(mdp, candidates, "candidates"))
 
 
 def _entropies(logw: np.ndarray, target: str, n_theta: int, n_beta: int) -> np.ndarray:
