@@ -140,9 +140,16 @@ def write_json(path: str | Path, doc: dict[str, Any]) -> None:
 
 
 def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+    """The process umask, read once (reading it means setting it; doing that per write would race
+    with threads that create files meanwhile)."""
+    global _UMASK
+    if _UMASK is None:
+        _UMASK = os.umask(0o022)
+        os.umask(_UMASK)
+    return _UMASK
+
+
+_UMASK: int | None = None
 
 
 def finite_or_null(doc: Any, path: str = "", found: list[str] | None = None) -> Any:
