@@ -279,3 +279,22 @@ def test_manifest_records_the_sweep(reference):
     runs = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
     assert runs and runs[0]["engine"] == "local" and runs[0]["workers"] == 1
     assert runs[0]["tasks_to_run"] == len(m["task_keys"]) and "numpy" in runs[0]["versions"]
+
+
+def test_the_config_model_reaches_the_people_and_the_inference():
+    """``model`` drives both the simulated person and the solve: under maxent-relative a person's
+    episodes follow that model's policy (the same seeds give other actions), and a bad name is refused."""
+    from expertise_irl.planning import solve
+
+    rel = dataclasses.replace(SMOKE, model="maxent-relative")
+    p_rel = person(rel, 0, 1, 0, 5, "low", "in_set")
+    p_ment = person(SMOKE, 0, 1, 0, 5, "low", "in_set")
+    assert np.array_equal(p_rel.theta, p_ment.theta) and p_rel.beta == p_ment.beta  # same truth
+    assert not np.array_equal(p_rel.trajectories.action, p_ment.trajectories.action)
+    from expertise_irl.experiments.studies.conditions import environment
+
+    _, mdp = environment(rel, 0, 1)
+    v = solve(mdp, p_rel.theta, p_rel.beta, model="maxent-relative").value[0]
+    np.testing.assert_allclose(p_rel.value, v, atol=1e-9)
+    with pytest.raises(InputError, match="model must be one of"):
+        dataclasses.replace(SMOKE, model="softmax")

@@ -68,6 +68,7 @@ class ConditionsConfig:
     betas: str = "paper-sim"
     out_of_set_beta_low: float = 0.01
     out_of_set_beta_high: float = 10.0
+    model: str = "maxent"  # observation model of the people and of the inference
 
     def __post_init__(self) -> None:
         bad = [g for g in self.groups if g not in GROUPS]
@@ -77,6 +78,9 @@ class ConditionsConfig:
             raise InputError("need at least one environment and run, and every k >= 2")
         if self.episodes < 1 or self.low_episodes < 1:
             raise InputError("episodes must be at least 1")
+        from ...models import check_model
+
+        check_model(self.model)
 
     def n_episodes(self, group: str, truth: str) -> int:
         return self.low_episodes if (group == "low" and truth == "in_set") else self.episodes
@@ -111,7 +115,7 @@ def _grid(preset: str, n_features: int) -> np.ndarray:
     return theta_grid(THETA_PRESETS[preset], n_features)
 
 
-def solve_padded(mdp, theta, beta):
+def solve_padded(mdp, theta, beta, model: str = "maxent"):
     """:func:`~expertise_irl.planning.solve` with the batch padded to a power of two (at least 8).
 
     The solver compiles once per batch shape; padding (repeating the last hypothesis) keeps
@@ -125,7 +129,7 @@ def solve_padded(mdp, theta, beta):
     H = len(theta)
     size = max(8, 1 << (H - 1).bit_length())
     pad = np.r_[np.arange(H), np.full(size - H, H - 1)]
-    sol = solve(mdp, theta[pad], beta[pad])
+    sol = solve(mdp, theta[pad], beta[pad], model=model)
     return sol.value[:H], sol.log_policy[:H]
 
 
@@ -185,7 +189,7 @@ def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str,
     else:
         th, b = out_of_set_truth(_grid(cfg.thetas, mdp.n_features), thetas, rng_truth,
                                  beta_range=(cfg.out_of_set_beta_low, cfg.out_of_set_beta_high))
-    value, log_policy = solve_padded(mdp, th, b)
+    value, log_policy = solve_padded(mdp, th, b, cfg.model)
     parts = []
     for j, ss in enumerate(sim_ss.spawn(cfg.n_episodes(group, truth))):
         tr = simulate(mdp, None, None, 1, np.random.default_rng(ss), max_steps=cfg.max_steps,
@@ -252,7 +256,7 @@ def run_task(cfg: ConditionsConfig, seed: int, params: dict) -> tuple[dict[str, 
     _, mdp = environment(cfg, seed, e)
     hyp = full_set(theta_k(cfg, seed, e, r, k), BETA_PRESETS[cfg.betas])
     t0 = time.perf_counter()
-    _, log_policy = solve_padded(mdp, hyp.theta, hyp.beta)
+    _, log_policy = solve_padded(mdp, hyp.theta, hyp.beta, cfg.model)
     solve_time = time.perf_counter() - t0
     cols: dict[str, list] = {}
     for g, t in cfg.people():
@@ -298,7 +302,7 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
             est["n_hypotheses"].append(len(sub))
     theta_hat = np.array(est["theta_hat"])
     uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
-    v_hat, _ = solve_padded(mdp, uniq, np.full(len(uniq), p.beta))
+    v_hat, _ = solve_padded(mdp, uniq, np.full(len(uniq), p.beta), cfg.model)
     regret = [regret_from_values(p.value, v_hat[i], mdp.terminal) for i in inv.ravel()]
     m = len(conds) * N
     e, r, k, _, _ = p.identity
