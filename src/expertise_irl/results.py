@@ -124,6 +124,12 @@ def file_digest(path: str | Path) -> str:
     return "sha256:" + h.hexdigest()
 
 
+def map_digest(zone_map) -> str:
+    """``sha256:<hex>`` of a map's content (grid and settings), whether from a file or bundled."""
+    text = f"{zone_map.to_text()}goal_bonus={zone_map.goal_bonus!r}\ngamma={zone_map.gamma!r}\n"
+    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
+
+
 def write_json(path: str | Path, doc: dict[str, Any]) -> None:
     """Write ``doc`` as strict JSON (no NaN/Infinity), atomically (via a fresh temporary file)."""
     path = Path(path)

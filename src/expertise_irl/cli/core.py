@@ -217,7 +217,7 @@ def infer(
     from ..inference.belief import DiscreteBelief
     from ..inference.continuous import METHODS
     from ..inference.diagnostics import discrete_warnings
-    from ..results import check_writable, discrete_result, file_digest, write_json
+    from ..results import check_writable, discrete_result, file_digest, map_digest, write_json
 
     if method not in METHODS:
         raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
@@ -236,7 +236,7 @@ def infer(
         _infer_continuous(method, mdp, zone_map, trajs, opts, seed=seed, out_path=out_path, force=force,
                           inputs=[demos, *_map_files(map_spec), mdp_path],
                           source={"mdp": str(mdp_path) if mdp_path else str(map_spec),
-                                  "mdp_digest": file_digest(mdp_path) if mdp_path else _map_digest(zone_map),
+                                  "mdp_digest": file_digest(mdp_path) if mdp_path else map_digest(zone_map),
                                   "demos": str(demos), "demos_digest": file_digest(demos)})
         return
     th = resolve_thetas(thetas, mdp.n_features)
@@ -256,7 +256,7 @@ def infer(
     settings = {
         "command": "infer", "method": "discrete",
         "mdp": str(mdp_path) if mdp_path else str(map_spec),
-        "mdp_digest": file_digest(mdp_path) if mdp_path else _map_digest(zone_map),
+        "mdp_digest": file_digest(mdp_path) if mdp_path else map_digest(zone_map),
         "demos": str(demos), "demos_digest": file_digest(demos),
         "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
         "thetas": thetas, "betas": betas, "sample_thetas": sample_thetas, "seed": seed,
@@ -342,14 +342,6 @@ def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, for
         _warn(w)
     extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
     _say(f"wrote {out_path}{extra} ({method}, {len(trajs)} actions, {doc['run_time_s']:.1f} s)")
-
-
-def _map_digest(zone_map) -> str:
-    """Digest of a map's content (grid and settings), whether from a file or bundled."""
-    import hashlib
-
-    text = f"{zone_map.to_text()}goal_bonus={zone_map.goal_bonus!r}\ngamma={zone_map.gamma!r}\n"
-    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
 
 
 @app.command()

@@ -46,14 +46,14 @@ def live(
     """
     from ..live.server import bind, is_loopback, serve
     from ..live.session import check_out_dir, open_session
+    from ..results import map_digest
     from ..worlds.zones import resolve_map
-    from .core import _map_digest
 
     zone_map = resolve_map(map_spec)
     mdp = zone_map.to_mdp()
     hyp = _hypotheses(thetas, betas, mdp.n_features)
     settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
-                "mdp_digest": _map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
+                "mdp_digest": map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
                 "thetas": thetas, "betas": betas, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta,
                 "n_hypotheses": len(hyp), "prior": "uniform", "gamma": mdp.gamma, "seed": seed}
     check_out_dir(zone_map, out_dir, settings)  # before the solve: a bad DIR fails at once
