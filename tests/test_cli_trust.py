@@ -246,11 +246,9 @@ def test_a_non_finite_statistic_becomes_null_with_a_reason():
 
     out = {"beta_hat": 1.0, "theta_hat": [1.0, 0.0], "diagnostics": {"r_hat": {"beta": float("nan")},
                                                                      "warnings": []}}
-    doc = continuous_result(out, method="nuts", feature_names=NAMES2, settings={}, data={},
+    doc = continuous_result(out, method="nuts", feature_names=("length", "road"), settings={}, data={},
                             samples_path=None)
     assert doc["diagnostics"]["r_hat"]["beta"] is None
     assert "diagnostics.r_hat.beta" in doc["diagnostics"]["unavailable"]
     json.dumps(doc, allow_nan=False)  # strict JSON now
 
-
-NAMES2 = ("length", "road")

@@ -24,12 +24,6 @@ from __future__ import annotations
 MODELS = ("maxent", "maxent-relative", "boltzmann")
 DEFAULT_MODEL = "maxent"
 
-DESCRIPTIONS = {
-    "maxent": "the paper's maximum-entropy policy (random behaviour earns an entropy bonus)",
-    "maxent-relative": "maximum entropy relative to a uniform choice (random behaviour earns nothing)",
-    "boltzmann": "noisy-rational: softmax of the optimal (hard) Q-values",
-}
-
 
 def check_model(model: str, what: str = "model") -> str:
     """``model`` if it is known, else :class:`~expertise_irl.errors.InputError` naming the choices."""

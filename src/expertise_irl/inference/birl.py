@@ -105,12 +105,10 @@ from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
 from ..planning import solve
-from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, DEFAULT_PRIOR, get_prior, log_prior_numpy
+from .priors import DEFAULT_PRIOR, get_prior, log_prior_numpy
 
 VARIANTS = ("box", "simplex")
 MOVES = ("both", "either")
-#: Sec. VII-A prior on β: Normal(5.005, 1.5) truncated to [0.01, 10].
-PAPER_BETA_PRIOR = (BETA_PRIOR_MEAN, BETA_PRIOR_SD, *BETA_RANGE)
 _START_TRIES = 1000
 _GRID_RTOL = 1e-9
 
