@@ -372,6 +372,9 @@ def validate(trajs: Trajectories, mdp: TabularMDP, source: str | Path | None = N
 STATE_COLUMNS = ("episode", "step", "state", "action")
 #: Header of the grid format: one row per visited cell, the final cell included.
 GRID_COLUMNS = ("episode", "step", "x", "y")
+#: Optional column of the grid format in heading worlds: ``h`` or ``v``, the state's heading.
+HEADING_COLUMN = "heading"
+_HEADING_LETTERS = ("h", "v")
 _HEADERS = {"state": STATE_COLUMNS, "grid": GRID_COLUMNS}
 _HEADER_HELP = "'episode,step,state,action' (generic MDP) or 'episode,step,x,y' (grid map)"
 # _MOVE[dx + 1, dy + 1] = the action with that (dx, dy), -1 for anything else.
@@ -380,13 +383,16 @@ _MOVE[ACTION_DELTAS[:, 0] + 1, ACTION_DELTAS[:, 1] + 1] = np.arange(len(ACTION_D
 
 
 def _cell_index(mdp: TabularMDP) -> np.ndarray | None:
-    """``[H, W]`` state of each grid cell (-1: not a state); None if ``mdp`` is not a grid."""
+    """``[L, H, W]`` state of each (heading, cell) (-1: not a state), ``L`` = 2 in a heading
+    world (``mdp.state_heading``), else 1; None if ``mdp`` is not a grid of that kind."""
     xy = mdp.state_xy
     if xy is None or mdp.n_actions != len(ACTION_DELTAS) or (xy < 0).any():
         return None
-    idx = np.full((int(xy[:, 1].max()) + 1, int(xy[:, 0].max()) + 1), -1, dtype=np.int64)
-    idx[xy[:, 1], xy[:, 0]] = np.arange(mdp.n_states)
-    return idx if int((idx >= 0).sum()) == mdp.n_states else None  # one state per cell
+    heading = mdp.state_heading if mdp.state_heading is not None else np.zeros(mdp.n_states, np.int64)
+    layers = 2 if mdp.state_heading is not None else 1
+    idx = np.full((layers, int(xy[:, 1].max()) + 1, int(xy[:, 0].max()) + 1), -1, dtype=np.int64)
+    idx[heading, xy[:, 1], xy[:, 0]] = np.arange(mdp.n_states)
+    return idx if int((idx >= 0).sum()) == mdp.n_states else None  # one state per (heading, cell)
 
 
 def _require_grid(mdp: TabularMDP, source) -> np.ndarray:
@@ -394,7 +400,8 @@ def _require_grid(mdp: TabularMDP, source) -> np.ndarray:
     if idx is None:
         raise InputError(
             f"{where(source)}the grid format (episode,step,x,y) needs a grid map: 4 actions and "
-            "one state per cell; use the generic format episode,step,state,action"
+            "one state per cell (per cell and heading in a heading world); use the generic "
+            "format episode,step,state,action"
         )
     return idx
 
@@ -414,7 +421,9 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
         ``"state"``: header ``episode,step,state,action``, one row per pair.
         ``"grid"``: header ``episode,step,x,y``, one row per visited cell including the
         cell the last action leads to (needs ``mdp.state_xy``, 4 actions, one state per
-        cell). ``"auto"``: grid when the MDP is such a grid, else state.
+        cell); in a heading world (``mdp.state_heading``) one state per cell and heading,
+        and a ``heading`` column (``h``/``v``) is added. ``"auto"``: grid when the MDP is
+        such a grid, else state.
     """
     if fmt not in ("auto", "state", "grid"):
         raise InputError(f"fmt must be 'auto', 'state' or 'grid', got {fmt!r}")
@@ -426,18 +435,24 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
     if fmt == "grid":
         _require_grid(mdp, path)
     ep, step, s, a = trajs.episode, trajs.step, trajs.state, trajs.action
+    heading = mdp.state_heading if fmt == "grid" else None
     with open(path, "w", encoding="utf-8", newline="") as fh:
         out = csv.writer(fh, lineterminator="\n")
-        out.writerow(_HEADERS[fmt])
+        out.writerow(_HEADERS[fmt] + ((HEADING_COLUMN,) if heading is not None else ()))
         if fmt == "state":
             out.writerows(np.stack([ep, step, s, a], axis=1).tolist())
             return
         xy = mdp.state_xy
+
+        def cell(state: int) -> list:
+            extra = [_HEADING_LETTERS[int(heading[state])]] if heading is not None else []
+            return [*xy[state].tolist(), *extra]
+
         last = np.append(ep[1:] != ep[:-1], True)
         for i in range(len(trajs)):
-            out.writerow([int(ep[i]), int(step[i]), *xy[s[i]].tolist()])
+            out.writerow([int(ep[i]), int(step[i]), *cell(s[i])])
             if last[i]:
-                out.writerow([int(ep[i]), int(step[i]) + 1, *xy[mdp.next_state[s[i], a[i]]].tolist()])
+                out.writerow([int(ep[i]), int(step[i]) + 1, *cell(mdp.next_state[s[i], a[i]])])
 
 
 _INT_LIMIT = 2**62  # far beyond any state, cell, step or episode label; keeps int64 safe
@@ -465,8 +480,11 @@ def _parse_int(text: str, column: str, prefix: str) -> int:
     return int(value)
 
 
-def _read_rows(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
-    """Format name, ``[n, 4]`` int values and ``[n]`` line numbers of the data rows."""
+def _read_rows(path: str | Path, heading: bool = False) -> tuple[str, np.ndarray, np.ndarray,
+                                                                  np.ndarray | None]:
+    """Format name, ``[n, 4]`` int values, ``[n]`` line numbers of the data rows, and with
+    ``heading`` the ``[n]`` headings (0 = h, 1 = v) of a grid file's ``heading`` column
+    (None when the file has none)."""
     if Path(path).is_dir():
         raise InputError(f"{where(path)}is a directory, expected a demonstrations CSV file")
     if not Path(path).is_file():
@@ -509,6 +527,10 @@ def _read_rows(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
         raise InputError(f"{where(path, line)}no demonstrations: the file has a header but no rows")
     values = np.empty((len(records) - 1, 4), dtype=np.int64)
     lines = np.empty(len(records) - 1, dtype=np.int64)
+    hpos = names.index(HEADING_COLUMN) if heading and fmt == "grid" and HEADING_COLUMN in names else None
+    if hpos is not None and names.count(HEADING_COLUMN) > 1:
+        raise InputError(f"{where(path, line)}column {HEADING_COLUMN!r} appears more than once in the header")
+    headings = np.empty(len(records) - 1, dtype=np.int64) if hpos is not None else None
     for r, (line, fields) in enumerate(records[1:]):
         prefix = where(path, line)
         if len(fields) != len(header):
@@ -517,11 +539,18 @@ def _read_rows(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
             )
         values[r] = [_parse_int(fields[i], c, prefix) for i, c in zip(pos, cols, strict=True)]
         lines[r] = line
+        if headings is not None:
+            letter = fields[hpos].lower()
+            if letter not in _HEADING_LETTERS:
+                raise InputError(f"{prefix}episode {values[r, 0]} step {values[r, 1]}: column "
+                                 f"'{HEADING_COLUMN}': {fields[hpos]!r} is not h (horizontal) or "
+                                 "v (vertical)")
+            headings[r] = _HEADING_LETTERS.index(letter)
     err = _structure_error(values[:, 0], values[:, 1])
     if err is not None:
         i, msg = err
         raise InputError(f"{where(path, lines[i])}episode {values[i, 0]} step {values[i, 1]}: {msg}")
-    return fmt, values, lines
+    return fmt, values, lines, headings
 
 
 def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
@@ -530,8 +559,11 @@ def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
     ``episode,step,state,action`` gives one (state, action) pair per row;
     ``episode,step,x,y`` gives one visited cell per row (the final cell included,
     at least 2 cells per episode) and each action is the move between consecutive
-    cells. Rows of one episode must be contiguous, steps 0, 1, 2, ...; episodes keep
-    their labels and file order. Blank lines, whitespace around fields, a UTF-8 BOM
+    cells. In a heading world (``mdp.state_heading``, e.g. a warehouse floor plan) an
+    optional ``heading`` column (``h``/``v``) gives each state's heading; without it, a
+    state's heading is the axis of the move that entered it and an episode's first state
+    takes the axis of its first move. Rows of one episode must be contiguous, steps 0, 1,
+    2, ...; episodes keep their labels and file order. Blank lines, whitespace around fields, a UTF-8 BOM
     and CRLF line ends are accepted.
 
     Parameters
@@ -551,31 +583,49 @@ def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
     InputError
         One line ``"<path>:<line>: [episode E step T: ]<reason>"`` (line 1 = header).
     """
-    fmt, v, lines = _read_rows(path)
+    fmt, v, lines, given_heading = _read_rows(path, heading=mdp.state_heading is not None)
     ep, step = v[:, 0], v[:, 1]
     if fmt == "state":
         trajs = Trajectories(ep, step, v[:, 2], v[:, 3])
         _validate(trajs, mdp, path, lines)
         return trajs
     idx = _require_grid(mdp, path)
-    H, W = idx.shape
+    _, H, W = idx.shape
     x, y = v[:, 2], v[:, 3]
     inside = (x >= 0) & (x < W) & (y >= 0) & (y < H)
-    state = np.where(inside, idx[np.clip(y, 0, H - 1), np.clip(x, 0, W - 1)], -1)
     same = np.zeros(ep.size, dtype=bool)
     same[1:] = ep[1:] == ep[:-1]
     last = ~np.append(same[1:], False)
     dx = np.diff(x, prepend=0)
     dy = np.diff(y, prepend=0)
     dist = np.abs(dx) + np.abs(dy)
+    xc, yc = np.clip(x, 0, W - 1), np.clip(y, 0, H - 1)
+    wrong_heading = np.zeros(ep.size, dtype=bool)
+    if mdp.state_heading is None:
+        heading = np.zeros(ep.size, dtype=np.int64)
+    else:  # heading of the move into each row; an episode's first row takes its first move's
+        moved = np.where(dx != 0, 0, 1)
+        heading = np.where(same, moved, np.append(moved[1:], 0))
+        if given_heading is not None:
+            wrong_heading = same & (dist == 1) & (given_heading != heading)
+            heading = given_heading
+    state = np.where(inside, idx[heading, yc, xc], -1)
+    is_cell = inside & (idx.max(axis=0)[yc, xc] >= 0)
     checks = (
         (~inside, lambda i: f"cell (x={x[i]}, y={y[i]}) is outside the map (x 0..{W - 1}, y 0..{H - 1})"),
-        (state < 0, lambda i: f"cell (x={x[i]}, y={y[i]}) is an obstacle (not a state of the map)"),
+        (~is_cell, lambda i: f"cell (x={x[i]}, y={y[i]}) is an obstacle (not a state of the map)"),
+        (is_cell & (state < 0), lambda i: (
+            f"cell (x={x[i]}, y={y[i]}) with heading {_HEADING_LETTERS[heading[i]]} is not a state "
+            "of the map")),
         (same & (dist == 0), lambda i: f"cell (x={x[i]}, y={y[i]}) repeats the previous cell (a zero move)"),
         (same & (dist > 1), lambda i: (
             f"jumps from ({x[i - 1]},{y[i - 1]}) to ({x[i]},{y[i]}); consecutive cells must be "
             "adjacent (one move up, down, left or right)")),
         (~same & last, lambda i: "episode has a single cell; the grid format needs at least 2 cells"),
+        (wrong_heading, lambda i: (
+            f"heading {_HEADING_LETTERS[given_heading[i]]} at cell (x={x[i]}, y={y[i]}) does not "
+            f"match the {('horizontal', 'vertical')[1 - given_heading[i]]} move into it: a move "
+            f"leaves the heading on its own axis ({_HEADING_LETTERS[1 - given_heading[i]]})")),
     )
     bad = np.logical_or.reduce([m for m, _ in checks])
     if bad.any():

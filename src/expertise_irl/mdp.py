@@ -5,6 +5,9 @@ Shapes: ``S`` states, ``A`` actions, ``K`` features.
 - ``next_state[S, A]`` (int): successor state, ``-1`` where the action is unavailable.
 - ``features[S, A, K]`` (float): φ(s, a, next(s, a)); ignored where unavailable.
 - ``terminal[S]`` (bool): absorbing goal states, value 0; an episode ends on entering one.
+- optional ``state_xy[S, 2]`` (int): grid cell (x = column, y = row) of each state, and for
+  worlds whose state also holds a heading, ``state_heading[S]`` (0 = horizontal, 1 = vertical);
+  such an MDP has two states per cell and its archive names the cells ``state_cell``.
 
 The reward of a hypothesis θ is exactly ``R[s, a] = θ · φ(s, a)``.
 """
@@ -44,6 +47,8 @@ class TabularMDP:
         feature_names: ``K`` names (default ``f0 .. f{K-1}``).
         start_states: optional ``[M]`` int64 states episodes may start from.
         state_xy: optional ``[S, 2]`` int64 grid cell (x, y) of each state.
+        state_heading: optional ``[S]`` int64 heading of each state, 0 = horizontal,
+            1 = vertical (needs ``state_xy``); see :mod:`expertise_irl.worlds.warehouse`.
         source: where the MDP came from, used in error messages.
     """
 
@@ -55,6 +60,7 @@ class TabularMDP:
     start_states: np.ndarray | None = None
     state_xy: np.ndarray | None = None
     source: str = field(default="<mdp>", compare=False)
+    state_heading: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         src = self.source
@@ -127,6 +133,16 @@ class TabularMDP:
             if xy.shape != (S, 2) or not np.issubdtype(xy.dtype, np.integer):
                 raise InputError(f"{src}: state_xy must be an integer array of shape [{S}, 2]")
             xy = _frozen(xy.astype(np.int64))
+        heading = self.state_heading
+        if heading is not None:
+            heading = np.asarray(heading)
+            if xy is None:
+                raise InputError(f"{src}: state_heading needs the cell of each state (state_xy)")
+            if heading.shape != (S,) or not np.issubdtype(heading.dtype, np.integer) or not np.isin(
+                    heading, (0, 1)).all():
+                raise InputError(f"{src}: state_heading must be an integer array of shape [{S}] "
+                                 "holding 0 (horizontal) or 1 (vertical)")
+            heading = _frozen(heading.astype(np.int64))
         set_ = object.__setattr__
         set_(self, "next_state", _frozen(ns.astype(np.int64)))
         set_(self, "features", _frozen(feats))
@@ -135,6 +151,7 @@ class TabularMDP:
         set_(self, "feature_names", names)
         set_(self, "start_states", starts)
         set_(self, "state_xy", xy)
+        set_(self, "state_heading", heading)
         unreachable = ~term & ~self._reaches_terminal()
         if unreachable.any():
             s = int(np.flatnonzero(unreachable)[0])
@@ -172,6 +189,8 @@ class TabularMDP:
         if self.state_xy is None:
             return ""
         x, y = self.state_xy[s]
+        if self.state_heading is not None:
+            return f" (cell x={x}, y={y}, heading {'hv'[int(self.state_heading[s])]})"
         return f" (cell x={x}, y={y})"
 
     def describe_state(self, s: int) -> str:
@@ -209,7 +228,10 @@ class TabularMDP:
         }
         if self.start_states is not None:
             arrays["start_states"] = self.start_states
-        if self.state_xy is not None:
+        if self.state_heading is not None:
+            arrays["state_cell"] = self.state_xy
+            arrays["state_heading"] = self.state_heading
+        elif self.state_xy is not None:
             arrays["state_xy"] = self.state_xy
         with open(path, "wb") as fh:
             np.savez_compressed(fh, **arrays)
@@ -237,7 +259,7 @@ class TabularMDP:
             raise InputError(f"{path}: archive lacks required array(s) {', '.join(missing)}")
         unknown = set(data) - {
             "next_state", "features", "terminal", "feature_names", "gamma",
-            "start_states", "state_xy",
+            "start_states", "state_xy", "state_cell", "state_heading",
         }
         if unknown:
             raise InputError(f"{path}: unknown array(s) in archive: {', '.join(sorted(unknown))}")
@@ -245,6 +267,10 @@ class TabularMDP:
             gamma = float(data["gamma"]) if "gamma" in data else DEFAULT_GAMMA
         except (TypeError, ValueError):
             raise InputError(f"{path}: gamma must be a single number") from None
+        if "state_cell" in data and "state_xy" in data:
+            raise InputError(f"{path}: archive holds both state_xy and state_cell; give one")
+        if "state_heading" in data and "state_cell" not in data:
+            raise InputError(f"{path}: archive has state_heading but no state_cell")
         names = tuple(np.atleast_1d(data["feature_names"]).tolist()) if "feature_names" in data else ()
         return cls(
             next_state=data["next_state"],
@@ -253,6 +279,7 @@ class TabularMDP:
             gamma=gamma,
             feature_names=names,
             start_states=data.get("start_states"),
-            state_xy=data.get("state_xy"),
+            state_xy=data.get("state_cell", data.get("state_xy")),
             source=str(path),
+            state_heading=data.get("state_heading"),
         )

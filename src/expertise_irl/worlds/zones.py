@@ -19,7 +19,10 @@ that a larger θ_i means the person cares more):
 5. ``traffic`` −1 when the move enters or exits a high-traffic zone.
 
 Optional settings live in a TOML file beside the map (same name, ``.toml``):
-``goal_bonus`` (default 10) and ``gamma`` (default 0.95).
+``goal_bonus`` (default 10) and ``gamma`` (default 0.95); ``world = "zones"`` may be
+stated. A TOML saying ``world = "warehouse"`` makes the map a warehouse floor plan
+(:mod:`expertise_irl.worlds.warehouse`; :func:`expertise_irl.worlds.maps.resolve_world`
+loads either kind).
 """
 
 from __future__ import annotations
@@ -156,6 +159,15 @@ class ZoneMap:
 def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOAL_BONUS,
               gamma: float = DEFAULT_GAMMA) -> ZoneMap:
     """Parse a text map. Blank lines at the start and end are ignored; rows must be equally long."""
+    return ZoneMap(read_grid(text, name, LEGEND), goal_bonus=goal_bonus, gamma=gamma, name=name)
+
+
+def read_grid(text: str, name: str, legend: tuple[str, ...]) -> np.ndarray:
+    """``[height, width]`` characters of a text map whose cells are all in ``legend``.
+
+    Blank lines at the start and end and trailing spaces are ignored; rows must be equally
+    long. Problems raise :class:`InputError` naming ``name:line:column``.
+    """
     lines = text.removeprefix("\ufeff").splitlines()
     first = 0
     while first < len(lines) and not lines[first].strip():
@@ -171,17 +183,16 @@ def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOA
         if not row.strip():
             raise InputError(f"{name}:{lineno}: blank line inside the map")
         for j, ch in enumerate(row):
-            if ch not in LEGEND:
+            if ch not in legend:
                 raise InputError(
-                    f"{name}:{lineno}:{j + 1}: unknown map character {ch!r} (legend: {' '.join(LEGEND)})"
+                    f"{name}:{lineno}:{j + 1}: unknown map character {ch!r} (legend: {' '.join(legend)})"
                 )
         if len(row) != width:
             raise InputError(
                 f"{name}:{lineno}: row has {len(row)} cells but the first row has {width}; "
                 "every row must have the same length"
             )
-    grid = np.array([list(r) for r in rows], dtype="<U1")
-    return ZoneMap(grid, goal_bonus=goal_bonus, gamma=gamma, name=name)
+    return np.array([list(r) for r in rows], dtype="<U1")
 
 
 def read_settings(path: Path) -> dict[str, float]:
@@ -194,6 +205,11 @@ def read_settings(path: Path) -> dict[str, float]:
         raise InputError(f"{path}: invalid TOML ({exc})") from None
     out = {}
     for key, value in data.items():
+        if key == "world":
+            if value != "zones":
+                raise InputError(f"{path}: world = {value!r}: not a zone map (this needs a map "
+                                 "of the zone world, world = 'zones' or no world key)")
+            continue
         if key not in _SETTINGS:
             raise InputError(f"{path}: unknown setting {key!r} (known: {', '.join(_SETTINGS)})")
         if isinstance(value, bool) or not isinstance(value, int | float):
