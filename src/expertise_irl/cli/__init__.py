@@ -2,12 +2,13 @@
 
 ``_app`` holds the typer application and what every command shares (one-line errors,
 exit code 2, progress bars); each command group lives in its own module and registers
-itself on import: ``core`` (demo, simulate, infer, export-mdp, render, maps).
+itself on import: ``core`` (demo, simulate, infer, export-mdp, render, maps), ``recordings``
+(discretise).
 """
 
 from __future__ import annotations
 
-from . import core, experiment, live, models, plot  # noqa: F401  (registers the commands)
+from . import core, experiment, live, models, plot, recordings  # noqa: F401  (registers the commands)
 from ._app import app, err, out
 
 

@@ -172,9 +172,10 @@ def _note(message: str) -> None:
 
 
 def _load_mdp(map_spec: str | None, mdp_path: Path | None):
-    """(mdp, zone_map or None) from exactly one of MAP or --mdp."""
+    """(mdp, map or None) from exactly one of MAP or --mdp; MAP is a zone map or, when the TOML
+    beside it says ``world = "warehouse"``, a floor plan."""
     from ..mdp import TabularMDP
-    from ..worlds.zones import resolve_map
+    from ..worlds.maps import resolve_world as resolve_map
 
     if (map_spec is None) == (mdp_path is None):
         raise InputError("give exactly one of MAP (a map file or bundled map name) or --mdp FILE.npz")

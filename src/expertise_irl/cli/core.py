@@ -115,10 +115,10 @@ def export_mdp(
 ) -> None:
     """Compile a text map to the MDP archive (.npz) that every command accepts."""
     from ..results import check_writable
-    from ..worlds.zones import resolve_map
+    from ..worlds.maps import resolve_world
 
     check_writable(out_path, force=force, inputs=_map_files(map_spec))
-    mdp = resolve_map(map_spec).to_mdp()
+    mdp = resolve_world(map_spec).to_mdp()
     mdp.save(out_path)
     _say(f"wrote {out_path}: {mdp.n_states} states, {mdp.n_actions} actions, "
               f"features {', '.join(mdp.feature_names)}, gamma {mdp.gamma:g}")
@@ -355,17 +355,20 @@ def render(
     """Draw a map (and optionally demonstrations) as a PNG in the style of the paper's Fig. 1."""
     from ..demos import read_demos_csv
     from ..results import check_writable
+    from ..worlds.maps import resolve_world
     from ..worlds.render import paths_to_xy, render_map_png
-    from ..worlds.zones import resolve_map
+    from ..worlds.warehouse import WarehouseMap
+    from ..worlds.warehouse_render import render_floor_plan_png
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), demos])
     _check_figure_format(out_path)
-    zone_map = resolve_map(map_spec)
+    zone_map = resolve_world(map_spec)
     paths = None
     if demos is not None:
         mdp = zone_map.to_mdp()
         paths = paths_to_xy(read_demos_csv(demos, mdp), mdp)
-    render_map_png(zone_map, out_path, trajectories_xy=paths, title=zone_map.name)
+    draw = render_floor_plan_png if isinstance(zone_map, WarehouseMap) else render_map_png
+    draw(zone_map, out_path, trajectories_xy=paths, title=zone_map.name)
     _say(f"wrote {out_path}")
 
 
@@ -383,10 +386,14 @@ def _check_figure_format(path: Path) -> None:
 @app.command()
 def maps() -> None:
     """List the bundled example maps."""
+    from ..worlds.maps import load_bundled_world
+    from ..worlds.warehouse import WarehouseMap
     from ..worlds.zones import bundled_maps as names
-    from ..worlds.zones import load_bundled
 
     for name in names():
-        m = load_bundled(name)
-        _say(f"{name:12s} {m.width}×{m.height}, {int(m.passable.sum())} states")
+        m = load_bundled_world(name)
+        if isinstance(m, WarehouseMap):
+            _say(f"{name:12s} {m.width}×{m.height}, {m.n_states} states (warehouse, with heading)")
+        else:
+            _say(f"{name:12s} {m.width}×{m.height}, {int(m.passable.sum())} states")
 
