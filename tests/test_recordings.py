@@ -232,10 +232,12 @@ def test_y_up_measures_y_from_the_bottom_edge(tmp_path):
 
 # ------------------------------------------------------------------------ goals
 def test_entering_a_goal_ends_the_episode_and_later_samples_are_counted(tmp_path):
-    rows = [(0, 0, 3, 3), (0, 1, 4, 3), (0, 2, 5, 3), (0, 3, 5, 2), (0, 4, 4, 2)]
+    rows = [(0, 0, 3, 3), (0, 1, 4, 3), (0, 2, 5, 3), (0, 3, 5, 3), (0, 4, 5, 2), (0, 5, 4, 2)]
     ep = only(run(tmp_path, rows))
     assert cells(ep) == [(3, 3), (4, 3), (5, 3)]
-    assert ep.reached_goal and ep.after_goal == 2
+    assert ep.reached_goal and ep.after_goal == 2  # waiting in the goal is not counted
+    stays = only(run(tmp_path, rows[:4]))
+    assert stays.reached_goal and stays.after_goal == 0
 
 
 def test_several_episodes_keep_their_labels_and_order(tmp_path):
@@ -317,8 +319,8 @@ def test_discretise_writes_the_heading_csv_and_a_png_and_reports_the_counts(tmp_
     ]
     assert (tmp_path / "demos.png").read_bytes()[:8] == PNG_SIGNATURE
     assert "filled gaps 1, snapped samples 1" in r.stdout
-    assert "episode 0: 7 samples, 6 kept at 1 Hz, 8 moves, reached a goal; 1 gaps filled, 1 samples snapped" \
-        in r.stdout
+    assert ("episode 0: 7 samples, 6 kept at 1 Hz, 8 moves, reached a goal; filled gaps 1, "
+            "snapped samples 1") in r.stdout
     mdp = resolve_world(plan_file).to_mdp()
     assert len(read_demos_csv(out, mdp)) == 9
     r = invoke("infer", plan_file, "--demos", out, "--out", tmp_path / "r.json", "--betas", "paper-real")

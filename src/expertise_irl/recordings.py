@@ -25,8 +25,8 @@ the right from the left edge, y down from the top edge (up from the bottom with
 5. **Headings.** Each state's heading is the axis of the move that entered it; the first
    state takes the axis of the episode's first move, so that move costs 1.
 6. **Goals.** Entering a goal ends the episode (goals are terminal); the samples after it
-   are ignored and counted. An episode that starts in a goal or never leaves its first cell
-   is an error.
+   are ignored, and the kept ones outside the goal cell counted. An episode that starts in
+   a goal or never leaves its first cell is an error.
 """
 
 from __future__ import annotations
@@ -196,7 +196,8 @@ class EpisodeCells:
         filled: ``[T]`` bool, the cell was inserted to fill a gap.
         filled_gaps: number of gaps filled.
         reached_goal: the path ends in a goal.
-        after_goal: kept samples ignored because they come after entering a goal.
+        after_goal: kept samples ignored because they come after entering a goal and lie
+            outside it (the robot drove on).
     """
 
     episode: int
@@ -405,7 +406,9 @@ def _discretise_episode(rec: Recording, rows: np.ndarray, plan: WarehouseMap, ra
     after_goal = 0
     for j, (a, b) in enumerate(zip(kept[:-1].tolist(), kept[1:].tolist(), strict=True)):
         if path.done:
-            after_goal = len(kept) - 1 - j
+            later = kept[j + 1:]
+            goal = path.cells[-1]
+            after_goal = int(np.sum((col[later] != goal[0]) | (row[later] != goal[1])))
             break
         ca, cb = (int(col[a]), int(row[a])), (int(col[b]), int(row[b]))
         apart = max(abs(cb[0] - ca[0]), abs(cb[1] - ca[1]))

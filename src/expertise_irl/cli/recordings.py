@@ -80,9 +80,10 @@ def discretise(
     for ep in result.episodes:
         end = "reached a goal" if ep.reached_goal else "ended before a goal"
         _say(f"episode {ep.episode}: {len(ep.samples_xy)} samples, {len(ep.kept)} kept at "
-             f"{result.rate:g} Hz, {ep.moves} moves, {end}; {ep.filled_gaps} gaps filled, "
-             f"{ep.snapped_samples} samples snapped")
+             f"{result.rate:g} Hz, {ep.moves} moves, {end}; filled gaps {ep.filled_gaps}, "
+             f"snapped samples {ep.snapped_samples}")
         if ep.after_goal:
-            _note(f"episode {ep.episode}: {ep.after_goal} kept samples after entering a goal ignored")
+            _note(f"episode {ep.episode}: the robot drove on after entering a goal; "
+                  f"{ep.after_goal} kept samples after it ignored (a goal ends the episode)")
     _say(f"wrote {out_path} and {png}: {len(result.episodes)} episodes, {len(result.trajectories)} moves; "
          f"filled gaps {result.filled_gaps}, snapped samples {result.snapped_samples}")
