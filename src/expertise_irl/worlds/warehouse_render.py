@@ -161,10 +161,10 @@ def render_discretised_png(path: str | Path, plan: WarehouseMap, result: Discret
         draw_cell_path(ax, plan, ep.cells, gid=f"cells-{k}", size=3.5)
         if ep.filled.any():
             f = ep.cells[ep.filled]
-            ax.plot(f[:, 0], f[:, 1], ls="", marker="o", ms=4, color=FILLED_COLOR, zorder=6,
+            ax.plot(f[:, 0], f[:, 1], ls="", marker="o", ms=4.5, color=FILLED_COLOR, zorder=6,
                     gid=f"filled-{k}")
         ax.set_title(f"episode {ep.episode}: {len(ep.samples_xy)} samples → {ep.moves} moves; "
-                     f"{ep.filled_gaps} gaps filled, {ep.snapped_samples} snapped", fontsize=8)
+                     f"filled gaps {ep.filled_gaps}, snapped samples {ep.snapped_samples}", fontsize=8)
     handles = [
         Line2D([], [], ls="", marker=".", ms=6, color=SAMPLE_COLOR, label="sample"),
         Line2D([], [], ls="", marker="o", ms=6, mfc="none", mec="#333333",
