@@ -7,6 +7,7 @@ Floor plans here use 1 m cells unless said otherwise, and samples sit at cell ce
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -174,6 +175,9 @@ def test_a_filled_gap_is_a_shortest_free_path_with_fewest_turns_and_is_counted(t
 def test_a_filled_path_goes_round_obstacles():
     path = shortest_free_path(PLAN, (1, 1), (3, 1), H)
     assert len(path) == 4 and (2, 1) not in path and path[-1] == (3, 1)
+    # heading v at (0, 1): of the 5-move ways round, up first turns only twice
+    assert shortest_free_path(PLAN, (0, 1), (3, 1), V) == [(0, 0), (1, 0), (2, 0), (3, 0), (3, 1)]
+    assert shortest_free_path(parse_floor_plan("S#.\n.#G\n"), (0, 0), (2, 0), None) is None
 
 
 def test_a_diagonal_between_two_obstacles_is_a_gap(tmp_path):
@@ -297,6 +301,23 @@ def test_a_missing_recording_and_a_zone_map_are_refused(tmp_path, plan_file):
     rec = write_rec(tmp_path / "rec.csv", [(0, 0, 0, 0), (0, 1, 1, 0)])
     assert_input_error(invoke("discretise", "crossroads", "--recording", rec, "--out", tmp_path / "d.csv"),
                        "crossroads: is a zone map", 'world = "warehouse"')
+
+
+def test_the_figure_puts_samples_where_they_were_recorded_and_cells_at_their_centres(tmp_path):
+    from expertise_irl.worlds.warehouse_render import discretised_figure
+
+    plan = parse_floor_plan(PLAN_TEXT, cell_size=0.5, y_up=True)
+    rows = ["0,0,0.25,1.75", "0,1,0.3,1.2", "0,2,0.3,0.7", "0,3,1.4,0.7", "0,4,3.4,0.7"]  # gaps, off map
+    result = run(tmp_path, rows, plan=plan, fill_gaps=True, snap=True)
+    fig = discretised_figure(plan, result)
+    lines = {ln.get_gid(): ln for ax in fig.get_axes() for ln in ax.lines if ln.get_gid()}
+    # x / c - 0.5 across; y up from the bottom: row = H - y / c - 0.5
+    assert np.allclose(lines["samples-0"].get_xdata(), [0.0, 0.1, 0.1, 2.3, 6.3])
+    assert np.allclose(lines["samples-0"].get_ydata(), [0.0, 1.1, 2.1, 2.1, 2.1])
+    assert lines["cells-0"].get_xydata().tolist() == [[0, 0], [0, 1], [0, 2], [1, 2], [2, 2], [3, 2],
+                                                      [4, 2], [5, 2]]
+    assert lines["filled-0"].get_xydata().tolist() == [[1, 2], [3, 2], [4, 2]]
+    assert np.allclose(lines["snapped-0"].get_xydata(), [[6.3, 2.1]])
 
 
 # ------------------------------------------------------------- command end to end

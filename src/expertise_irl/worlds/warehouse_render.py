@@ -137,10 +137,16 @@ def render_floor_plan_png(plan: WarehouseMap, path: str | Path, *,
 
 def render_discretised_png(path: str | Path, plan: WarehouseMap, result: Discretised, *,
                            title: str | None = None) -> Path:
-    """Save a PNG of recorded samples against the cells they became, one panel per episode.
+    """Save :func:`discretised_figure` as a PNG (dpi 120)."""
+    return render._save(discretised_figure(plan, result, title=title), path)
 
-    Grey dots: every sample; hollow rings: the samples kept at the ticks; crosses: snapped
-    samples; blue dots: the visited cells; orange dots: cells filled into gaps.
+
+def discretised_figure(plan: WarehouseMap, result: Discretised, *, title: str | None = None):
+    """Recorded samples against the cells they became, one panel per episode.
+
+    Grey dots: every sample (gid ``samples-k``); hollow rings: the samples kept at the ticks
+    (``kept-k``); crosses: snapped samples (``snapped-k``); blue dots: the visited cells
+    (``cells-k``); orange dots: cells filled into gaps (``filled-k``).
     """
     eps = result.episodes
     cols = min(len(eps), 3)
@@ -177,4 +183,4 @@ def render_discretised_png(path: str | Path, plan: WarehouseMap, result: Discret
     fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 5), frameon=False,
                fontsize=7.5)
     fig.suptitle(title if title is not None else plan.name, fontsize=10)
-    return render._save(fig, path)
+    return fig
