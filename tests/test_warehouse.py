@@ -335,3 +335,12 @@ def test_an_expert_takes_a_cheapest_path_turning_once():
         headings = mdp.state_heading[mdp.next_state[states, actions]]
         assert int(np.sum(headings[1:] != headings[:-1])) == 1
         assert mdp.features[states, actions, 0].sum() == -5  # three moves along, one turn
+
+
+def test_the_map_digest_tells_a_floor_plan_from_a_zone_map_with_the_same_cells():
+    from expertise_irl.results import map_digest
+    from expertise_irl.worlds.zones import parse_map
+
+    text = "S..\n.x.\n..G\n"
+    assert map_digest(parse_floor_plan(text)) != map_digest(parse_map(text))
+    assert map_digest(parse_floor_plan(text, cell_size=0.5)) != map_digest(parse_floor_plan(text))
