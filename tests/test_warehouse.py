@@ -344,3 +344,12 @@ def test_the_map_digest_tells_a_floor_plan_from_a_zone_map_with_the_same_cells()
     text = "S..\n.x.\n..G\n"
     assert map_digest(parse_floor_plan(text)) != map_digest(parse_map(text))
     assert map_digest(parse_floor_plan(text, cell_size=0.5)) != map_digest(parse_floor_plan(text))
+
+
+def test_an_mdp_heading_must_be_0_or_1_per_state_and_needs_the_cells():
+    mdp = parse_floor_plan(SMALL).to_mdp()
+    args = {"next_state": mdp.next_state, "features": mdp.features, "terminal": mdp.terminal}
+    with pytest.raises(InputError, match=r"state_heading needs the cell of each state"):
+        TabularMDP(**args, state_heading=mdp.state_heading)
+    with pytest.raises(InputError, match=r"holding 0 \(horizontal\) or 1 \(vertical\)"):
+        TabularMDP(**args, state_xy=mdp.state_xy, state_heading=mdp.state_heading * 2)
