@@ -1,4 +1,5 @@
-"""The ``discretise`` command: a Cartesian recording → demonstrations CSV and a PNG to inspect."""
+"""Recordings: ``discretise`` (a Cartesian recording → demonstrations CSV and a PNG to inspect) and
+``simulate-recordings`` (a simulated person's tele-operation log)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._app import _map_files, _note, _say, app, handles_errors
+from ._app import ModelOption, _map_files, _note, _say, app, handles_errors
 
 #: Options shared with the commands that ingest recordings.
 RateOption = Annotated[float, typer.Option(
@@ -87,3 +88,67 @@ def discretise(
                   f"{ep.after_goal} kept samples after it ignored (a goal ends the episode)")
     _say(f"wrote {out_path} and {png}: {len(result.episodes)} episodes, {len(result.trajectories)} moves; "
          f"filled gaps {result.filled_gaps}, snapped samples {result.snapped_samples}")
+
+
+@app.command("simulate-recordings")
+@handles_errors
+def simulate_recordings_cmd(
+    map_spec: Annotated[str, typer.Argument(
+        metavar="MAP", help="Warehouse floor plan (.txt with its TOML) or a bundled floor plan.")],
+    theta: Annotated[str, typer.Option(help="Preferences θ*, comma-separated (normalised to unit l1).")],
+    beta: Annotated[float, typer.Option(help="Expertise temperature β* > 0 (small = expert).")],
+    out_path: Annotated[Path, typer.Option("--out", help="Output recording CSV: episode,t,x,y.")],
+    episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 1,
+    seed: Annotated[int, typer.Option(min=0, help="Random seed (moves, timing, noise, gaps).")] = 0,
+    max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (moves).")] = 500,
+    model: ModelOption = "maxent",
+    hz: Annotated[float, typer.Option(help="Samples per second.")] = 10.0,
+    speed: Annotated[float | None, typer.Option(
+        help="Driving speed in m/s (default 0.8 cells per second, so 1 Hz sees every cell).")] = None,
+    noise: Annotated[float, typer.Option(
+        help="Standard deviation of the position noise, metres per axis.")] = 0.03,
+    pause_prob: Annotated[float, typer.Option(
+        help="Probability of a pause after arriving at a cell.")] = 0.05,
+    pause_s: Annotated[float, typer.Option(help="Mean length of a pause (seconds; uniform on ±50%).")] = 2.0,
+    gaps: Annotated[int, typer.Option(min=0, help="Stretches with no samples (a logger drop-out).")] = 0,
+    gap_s: Annotated[float, typer.Option(help="Length of each gap (seconds).")] = 3.0,
+    demos: Annotated[Path | None, typer.Option(
+        help="Also write the moves the person chose (episode,step,x,y,heading), to compare with "
+        "discretise.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the outputs if they exist.")] = False,
+) -> None:
+    """Simulate a person on a floor plan and record the robot in metres, as a tele-operation log.
+
+    The person chooses moves by --model with θ* and β*; the robot drives them from cell
+    centre to cell centre at --speed, pauses now and then, is sampled at --hz with Gaussian
+    --noise, and --gaps stretches of --gap-s seconds lose their samples (docs/user-studies.md).
+    """
+    import numpy as np
+
+    from ..demos import write_demos_csv
+    from ..results import check_writable
+    from ..userstudy.simulated_recordings import RobotMotion, simulate_recordings, write_recording
+    from ._app import _check_beta, _check_model, _parse_theta, _report_capped
+
+    inputs = _map_files(map_spec)
+    for p in (out_path, demos):
+        if p is not None:
+            check_writable(p, force=force, inputs=inputs)
+    if demos is not None and demos.resolve() == out_path.resolve():
+        raise InputError(f"{demos}: the recording and the demonstrations would be the same file")
+    plan = load_floor_plan_arg(map_spec)
+    mdp = plan.to_mdp()
+    th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
+    _check_beta(beta)
+    _check_model(model)
+    motion = RobotMotion(hz=hz, speed=speed, noise=noise, pause_prob=pause_prob, pause_s=pause_s,
+                         gaps=gaps, gap_s=gap_s)
+    recs, trajs = simulate_recordings(plan, th, beta, episodes, np.random.default_rng(seed), motion=motion,
+                                      max_steps=max_steps, model=model)
+    n = write_recording(out_path, recs)
+    if demos is not None:
+        write_demos_csv(demos, trajs, mdp, fmt="grid")
+    _say(f"wrote {out_path}: {len(recs)} episodes, {n} samples at {hz:g} Hz, {len(trajs)} moves "
+         f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, model {model}; {gaps} gaps)"
+         + (f"; moves in {demos}" if demos is not None else ""))
+    _report_capped(trajs, mdp, max_steps, model)

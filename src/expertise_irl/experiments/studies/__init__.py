@@ -8,8 +8,9 @@ from ...errors import InputError
 def studies() -> dict:
     """Study name -> :class:`~expertise_irl.experiments.engine.Study`."""
     from .conditions import STUDY as conditions
+    from .user_study import STUDIES as user_studies
 
-    return {s.name: s for s in (conditions,)}
+    return {s.name: s for s in (conditions, *user_studies)}
 
 
 def get_study(name: str):

@@ -1,0 +1,461 @@
+"""``expertise-irl study``: every participant of a manifest, on the experiment engine.
+
+Steps (each engine phase is resumable: a finished task is not run again):
+
+1. read the manifest and every floor plan, recording and demonstrations file (any problem
+   stops here, naming the manifest line);
+2. inference on the engine, in ``DIR/engine/inference``: for ``discrete`` one task per
+   distinct floor plan (one solve of the hypothesis set, shared by every participant on it),
+   for ``map`` / ``nuts`` one task per participant (all their tasks' log-likelihoods summed);
+3. the joint posterior of each participant (the product over their tasks);
+4. optimal paths on the engine, in ``DIR/engine/optimal``: one task per floor plan, β = 0.001
+   with each participant's θ̂, from the start of each of their episodes;
+5. the reports: ``DIR/study.csv``, ``DIR/study.md``, ``DIR/tasks.csv`` and, per participant,
+   ``DIR/participants/ID/result.json`` and ``DIR/participants/ID/ID.png``.
+
+``DIR/study.json`` records what the study is (inputs with their digests, options); a
+second run on the same DIR with the same inputs and options resumes, anything else is
+refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+from ..experiments import engine
+from ..experiments.studies.user_study import CONTINUOUS, DISCRETE, OPTIMAL, UserStudyConfig
+from ..results import file_digest, map_digest, write_json
+from .manifest import Manifest, StudyTask, read_manifest
+from .paths import COUNTS, OPTIMAL_BETA, path_counts
+from .report import (
+    GROUP_COLUMNS,
+    posterior_modes,
+    study_columns,
+    study_markdown,
+    task_columns,
+    write_csv,
+)
+
+STUDY_FILE = "study.json"
+LAYOUT = 1
+
+
+@dataclass(frozen=True)
+class StudyOptions:
+    thetas: str = "paper-real"
+    betas: str = "paper-real"
+    method: str = "discrete"
+    rate: float = 1.0
+    max_dt: float | None = None
+    fill_gaps: bool = False
+    snap: bool = False
+    model: str = "maxent"
+
+
+class StudyFailed(Exception):
+    """Some engine tasks failed (their messages in ``failures``)."""
+
+    def __init__(self, phase: str, failures: list[tuple[str, str]]):
+        self.phase, self.failures = phase, failures
+        super().__init__(f"{len(failures)} {phase} task(s) failed")
+
+
+@dataclass
+class StudyOutcome:
+    out: Path
+    participants: list[dict[str, Any]]
+    tasks_run: int
+    tasks_skipped: int
+    wall_time_s: float
+    feature_names: tuple[str, ...]
+
+
+def map_key(plan) -> str:
+    return "map-" + map_digest(plan).split(":", 1)[1][:16]
+
+
+def _plan_entry(plan) -> dict[str, Any]:
+    return {
+        "text": plan.to_text(),
+        "name": Path(plan.name).name,
+        "cell_size": plan.cell_size,
+        "goal_bonus": plan.goal_bonus,
+        "gamma": plan.gamma,
+        "y_up": plan.y_up,
+    }
+
+
+def study_data(manifest: Manifest) -> dict[str, Any]:
+    """The study's data for the engine: floor plans by key and every row's pairs."""
+    maps: dict[str, Any] = {}
+    tasks = []
+    for t in manifest.tasks:
+        key = map_key(t.plan)
+        maps.setdefault(key, _plan_entry(t.plan))
+        tr = t.trajectories
+        tasks.append(
+            {
+                "task": t.index,
+                "participant": t.participant,
+                "map": key,
+                "episodes": tr.episode.tolist(),
+                "steps": tr.step.tolist(),
+                "states": tr.state.tolist(),
+                "actions": tr.action.tolist(),
+            }
+        )
+    return {"maps": maps, "tasks": tasks}
+
+
+def _identity(manifest: Manifest, opts: StudyOptions) -> dict[str, Any]:
+    files = {"manifest": file_digest(manifest.path)}
+    for t in manifest.tasks:
+        files[str(t.source)] = file_digest(t.source)
+        files[str(t.map_path)] = map_digest(t.plan)
+    ident = {"layout": LAYOUT, "options": asdict(opts), "inputs": files}
+    ident["hash"] = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
+    return ident
+
+
+def _open_out(out: Path, ident: dict[str, Any], manifest: Manifest) -> None:
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory")
+    marker = out / STUDY_FILE
+    if marker.is_file():
+        try:
+            old = json.loads(marker.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise InputError(f"{marker}: unreadable; use another --out") from None
+        if old.get("hash") != ident["hash"]:
+            raise InputError(
+                f"{out}: holds a study of other inputs or options ({str(old.get('hash'))[:12]}, "
+                f"not {ident['hash'][:12]}); use another --out"
+            )
+        return
+    if out.exists() and any(out.iterdir()):
+        raise InputError(f"{out}: directory is not empty and holds no study; use another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(
+        marker,
+        {
+            **ident,
+            "manifest": str(manifest.path),
+            "version": __version__,
+            "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        },
+    )
+
+
+def _run_phase(study, where: Path, cfg, phase: str, workers, scheduler, on_task) -> engine.RunSummary:
+    summary = engine.run(
+        study,
+        where,
+        config=cfg,
+        workers=workers,
+        scheduler=scheduler,
+        retry_failed=True,
+        on_start=(lambda total, todo: on_task(phase, total, todo, None)) if on_task else None,
+        on_result=(lambda res, rows: on_task(phase, None, None, res)) if on_task else None,
+    )
+    if summary.failed:
+        raise StudyFailed(phase, engine.status(where).failures)
+    return summary
+
+
+def run_study(
+    manifest_path: str | Path,
+    out: str | Path,
+    opts: StudyOptions = StudyOptions(),
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    on_task: Callable | None = None,
+) -> StudyOutcome:
+    """Run (or resume) the study of ``manifest_path`` into ``out`` (see the module docstring)."""
+    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from ..models import check_model
+
+    t0 = time.perf_counter()
+    check_model(opts.model, "--model")
+    cfg_probe = UserStudyConfig(data="{}", method=opts.method)  # a bad --method is reported first
+    del cfg_probe
+    manifest = read_manifest(
+        manifest_path, rate=opts.rate, max_dt=opts.max_dt, fill_gaps=opts.fill_gaps, snap=opts.snap
+    )
+    names = tuple(manifest.tasks[0].plan.to_mdp().feature_names)
+    hyp = None
+    if opts.method == "discrete":
+        hyp = HypothesisSet(resolve_thetas(opts.thetas, len(names)), resolve_betas(opts.betas))
+    out = Path(out)
+    ident = _identity(manifest, opts)
+    _open_out(out, ident, manifest)
+    data = study_data(manifest)
+    cfg = UserStudyConfig(
+        data=json.dumps(data, sort_keys=True),
+        thetas=opts.thetas,
+        betas=opts.betas,
+        model=opts.model,
+        method=opts.method,
+    )
+    study = DISCRETE if opts.method == "discrete" else CONTINUOUS
+    s1 = _run_phase(study, out / "engine" / "inference", cfg, "inference", workers, scheduler, on_task)
+    rows = engine.load(out / "engine" / "inference")
+    estimates = (
+        _discrete_estimates(manifest, rows, hyp)
+        if opts.method == "discrete"
+        else _continuous_estimates(manifest, rows)
+    )
+    # Optimal paths: each row's θ̂ is its participant's (joint) θ̂.
+    for t in data["tasks"]:
+        t["theta_hat"] = list(estimates[t["participant"]]["doc"]["theta_hat"])
+        t["starts"] = [int(s) for s, _ in _starts(manifest.tasks[t["task"]])]
+        for k in ("episodes", "steps", "states", "actions"):
+            del t[k]
+    cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=opts.model, method=opts.method)
+    s2 = _run_phase(OPTIMAL, out / "engine" / "optimal", cfg2, "optimal", workers, scheduler, on_task)
+    optimal = engine.load(out / "engine" / "optimal")
+    participants = _reports(out, manifest, estimates, optimal, opts, hyp, names)
+    return StudyOutcome(
+        out, participants, s1.ran + s2.ran, s1.skipped + s2.skipped, time.perf_counter() - t0, names
+    )
+
+
+def _starts(task: StudyTask) -> list[tuple[int, int]]:
+    """``(start state, episode label)`` of each episode of a row."""
+    tr = task.trajectories
+    return [(int(s[0]), int(e)) for (s, _), e in zip(tr.episodes(), tr.episode_ids, strict=True)]
+
+
+# ------------------------------------------------------------------------ estimates
+def _discrete_estimates(manifest: Manifest, rows, hyp) -> dict[str, dict[str, Any]]:
+    from ..inference.belief import DiscreteBelief
+    from ..inference.multitask import MultiTaskBelief
+    from ..results import discrete_result
+
+    H = len(hyp)
+    ll = {int(k): g.sort_values("hypothesis")["log_likelihood"].to_numpy() for k, g in rows.groupby("task")}
+    log_prior = np.full(H, -np.log(H))
+    out = {}
+    for pid in manifest.participants:
+        mine = manifest.tasks_of(pid)
+        beliefs = [
+            DiscreteBelief(hyp, np.zeros((H, 0, 4)), log_prior, ll[t.index], len(t.trajectories))
+            for t in mine
+        ]
+        joint = MultiTaskBelief(tuple(beliefs)).joint()
+        names = mine[0].plan.to_mdp().feature_names
+        doc = discrete_result(
+            joint,
+            feature_names=names,
+            settings={},
+            data={
+                "tasks": len(mine),
+                "episodes": sum(t.trajectories.n_episodes for t in mine),
+                "actions": joint.n_observed,
+            },
+        )
+        doc["modes"] = posterior_modes(joint)
+        out[pid] = {
+            "doc": doc,
+            "groups": joint.group_probabilities(),
+            "per_task": [
+                {
+                    "beta_hat": b.mean_beta,
+                    "theta_hat": b.mean_theta.tolist(),
+                    "groups": b.group_probabilities(),
+                }
+                for b in beliefs
+            ],
+        }
+    return out
+
+
+def _continuous_estimates(manifest: Manifest, rows) -> dict[str, dict[str, Any]]:
+    from ..hypotheses import expertise_group
+
+    by = dict(zip(rows["participant"], rows["result"], strict=True))
+    out = {}
+    for pid in manifest.participants:
+        res = json.loads(by[pid])
+        groups = None
+        draws = res.get("draws")
+        if draws:
+            g = [expertise_group(b) for b in draws["beta"]]
+            groups = {k: g.count(k) / len(g) for k in ("high", "medium", "low")}
+        out[pid] = {"doc": res, "groups": groups, "per_task": None}
+    return out
+
+
+# -------------------------------------------------------------------------- reports
+def _cells_of(plan, mdp, states, actions) -> np.ndarray:
+    s = np.append(states, mdp.next_state[states[-1], actions[-1]]) if len(states) else states
+    return plan.state_cells()[s]
+
+
+def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names):
+    from ..results import continuous_result, samples_path_for
+    from .figure import render_participant_png
+
+    pdir = out / "participants"
+    pdir.mkdir(exist_ok=True)
+    study_rows, task_rows, modes = [], [], {}
+    feats = list(names)
+    for pid in manifest.participants:
+        est = estimates[pid]
+        mine = manifest.tasks_of(pid)
+        panels, per_task_docs = [], []
+        total = dict.fromkeys(COUNTS, 0)
+        total_opt = dict.fromkeys(COUNTS, 0)
+        reached = filled = snapped = episodes = 0
+        for j, t in enumerate(mine):
+            mdp = t.plan.to_mdp()
+            tr = t.trajectories
+            counts = path_counts(t.plan, mdp, tr.state, tr.action)
+            opt = optimal[optimal["task"] == t.index]
+            counts_opt = path_counts(t.plan, mdp, opt["state"].to_numpy(), opt["action"].to_numpy())
+            ok = int(opt.groupby("episode")["reached_goal"].first().sum()) if len(opt) else 0
+            observed = [_cells_of(t.plan, mdp, s, a) for s, a in tr.episodes()]
+            opt_cells = [
+                _cells_of(t.plan, mdp, g["state"].to_numpy(), g["action"].to_numpy())
+                for _, g in opt.groupby("episode")
+            ]
+            title = f"{Path(t.map_path).name} ({t.source.name})"
+            panels.append({"plan": t.plan, "title": title, "observed": observed, "optimal": opt_cells})
+            for k in COUNTS:
+                total[k] += counts[k]
+                total_opt[k] += counts_opt[k]
+            reached += ok
+            filled += t.filled_gaps
+            snapped += t.snapped_samples
+            episodes += tr.n_episodes
+            pt = est["per_task"][j] if est["per_task"] else None
+            trow = {
+                "participant": pid,
+                "task": t.index,
+                "line": t.line,
+                "map": str(t.map_path),
+                "recording": str(t.source) if t.kind == "recording" else "",
+                "demos": str(t.source) if t.kind == "demos" else "",
+                "episodes": tr.n_episodes,
+                "beta_hat": pt["beta_hat"] if pt else float("nan"),
+                **{f"theta_{f}": (pt["theta_hat"][i] if pt else float("nan")) for i, f in enumerate(feats)},
+                **{c: (pt["groups"][c[2:]] if pt else float("nan")) for c in GROUP_COLUMNS},
+                **counts,
+                **{f"optimal_{k}": v for k, v in counts_opt.items()},
+                "optimal_reached_goal": ok,
+                "filled_gaps": t.filled_gaps,
+                "snapped_samples": t.snapped_samples,
+            }
+            task_rows.append(trow)
+            per_task_docs.append(
+                {
+                    "task": t.index,
+                    "line": t.line,
+                    "map": str(t.map_path),
+                    "map_digest": map_digest(t.plan),
+                    t.kind: str(t.source),
+                    f"{t.kind}_digest": file_digest(t.source),
+                    "episodes": tr.n_episodes,
+                    "actions": len(tr),
+                    "counts": counts,
+                    "optimal_counts": counts_opt,
+                    "optimal_reached_goal": ok,
+                    "filled_gaps": t.filled_gaps,
+                    "snapped_samples": t.snapped_samples,
+                    **({"discretised": t.discretised.summary()} if t.discretised is not None else {}),
+                    **(
+                        {
+                            "beta_hat": pt["beta_hat"],
+                            "theta_hat": pt["theta_hat"],
+                            "group_probabilities": pt["groups"],
+                        }
+                        if pt
+                        else {}
+                    ),
+                }
+            )
+        settings = {
+            "command": "study",
+            "manifest": str(manifest.path),
+            "participant": pid,
+            "method": opts.method,
+            "model": opts.model,
+            "rate": opts.rate,
+            "max_dt": opts.max_dt,
+            "fill_gaps": opts.fill_gaps,
+            "snap": opts.snap,
+            "optimal_beta": OPTIMAL_BETA,
+        }
+        if opts.method == "discrete":
+            settings.update(
+                {
+                    "thetas": opts.thetas,
+                    "betas": opts.betas,
+                    "n_theta": hyp.n_theta,
+                    "n_beta": hyp.n_beta,
+                    "n_hypotheses": len(hyp),
+                    "prior": "uniform",
+                    "gamma": [t.plan.gamma for t in mine],
+                }
+            )
+        d = pdir / pid
+        d.mkdir(exist_ok=True)
+        if opts.method == "discrete":
+            doc = est["doc"]
+            doc["settings"] = settings
+        else:
+            doc = continuous_result(
+                dict(est["doc"]),
+                method=opts.method,
+                feature_names=names,
+                settings=settings,
+                data={"tasks": len(mine), "episodes": episodes},
+                samples_path=samples_path_for(d / "result.json"),
+            )
+            doc["modes"] = []
+        doc["participant"] = pid
+        doc["tasks"] = per_task_docs
+        doc["counts"] = total
+        doc["optimal_counts"] = total_opt
+        doc["filled_gaps"], doc["snapped_samples"] = filled, snapped
+        write_json(d / "result.json", doc)
+        render_participant_png(d / f"{pid}.png", pid, panels, doc)
+        modes[pid] = doc.get("modes", [])
+        groups = est["groups"]
+        study_rows.append(
+            {
+                "participant": pid,
+                "tasks": len(mine),
+                "episodes": episodes,
+                "beta_hat": float(doc["beta_hat"]),
+                **{f"theta_{f}": float(doc["theta_hat"][i]) for i, f in enumerate(feats)},
+                **{c: (groups[c[2:]] if groups else float("nan")) for c in GROUP_COLUMNS},
+                **total,
+                **{f"optimal_{k}": v for k, v in total_opt.items()},
+                "optimal_reached_goal": reached,
+                "filled_gaps": filled,
+                "snapped_samples": snapped,
+            }
+        )
+    write_csv(out / "study.csv", study_rows, study_columns(feats))
+    write_csv(out / "tasks.csv", task_rows, task_columns(feats))
+    md = study_markdown(
+        study_rows,
+        feats,
+        method=opts.method,
+        n_hypotheses=len(hyp) if hyp else None,
+        modes=modes,
+        title=f"Study {manifest.path.name}",
+    )
+    (out / "study.md").write_text(md, encoding="utf-8")
+    return study_rows
