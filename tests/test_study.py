@@ -1,0 +1,289 @@
+"""``expertise-irl study``: manifests and their errors, Table V counts, resume, the bundled example."""
+
+from __future__ import annotations
+
+import csv
+import json
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+from typer.testing import CliRunner
+
+from expertise_irl.cli import app
+from expertise_irl.demos import Trajectories, write_demos_csv
+from expertise_irl.userstudy.paths import greedy_path, path_counts
+from expertise_irl.worlds.warehouse import parse_floor_plan
+
+UP, DOWN, LEFT, RIGHT = range(4)
+TOML = 'world = "warehouse"\ncell_size = 1.0\n'
+# 0 1 2 3 4
+PLAN = "S>>>v\n..xxv\n....G\n"
+EXAMPLE = Path(str(resources.files("expertise_irl.userstudy") / "example"))
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def assert_input_error(result, *fragments: str) -> str:
+    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}\n{result.exception!r}"
+    assert isinstance(result.exception, SystemExit), repr(result.exception)
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), lines
+    for f in fragments:
+        assert f in lines[0], f"{f!r} not in {lines[0]!r}"
+    return lines[0]
+
+
+def write(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def recording(path: Path, cells, episode: int = 1) -> Path:
+    """A recording that sits 2 s at each cell centre (sampled at 1 Hz, cell size 1 m)."""
+    rows = ["episode,t,x,y"]
+    t = 0
+    for col, row in cells:
+        for _ in range(2):
+            rows.append(f"{episode},{t},{col + 0.5},{row + 0.5}")
+            t += 1
+    return write(path, "\n".join(rows) + "\n")
+
+
+@pytest.fixture
+def study_dir(tmp_path):
+    """Two floor plans, three participants, one of them on both plans; one row via demos."""
+    write(tmp_path / "a.txt", PLAN)
+    write(tmp_path / "a.toml", TOML)
+    write(tmp_path / "b.txt", "S...v\n.#..v\n....G\n")
+    write(tmp_path / "b.toml", TOML)
+    top = [(0, 0), (1, 0), (2, 0), (3, 0), (4, 0), (4, 1), (4, 2)]
+    low = [(0, 0), (0, 1), (0, 2), (1, 2), (2, 2), (3, 2), (4, 2)]
+    recording(tmp_path / "p1.csv", top)
+    recording(tmp_path / "p2.csv", low)
+    recording(tmp_path / "p3b.csv", top)
+    plan = parse_floor_plan(PLAN)
+    idx = plan.state_index()
+    s = [int(idx[1 if i and low[i][0] == low[i - 1][0] else 0, r, c]) for i, (c, r) in enumerate(low[:-1])]
+    s[0] = int(idx[1, 0, 0])
+    a = [DOWN, DOWN, RIGHT, RIGHT, RIGHT, RIGHT]
+    write_demos_csv(
+        tmp_path / "p3a.csv",
+        Trajectories(np.zeros(6, int), np.arange(6), np.array(s), np.array(a)),
+        plan.to_mdp(),
+        fmt="grid",
+    )
+    write(
+        tmp_path / "manifest.csv",
+        "participant,map,recording,demos\nP1,a.txt,p1.csv,\nP2,a.txt,p2.csv,\n"
+        "P3,a.txt,,p3a.csv\nP3,b.txt,p3b.csv,\n",
+    )
+    return tmp_path
+
+
+# ------------------------------------------------------------------------------ counts
+def test_table_v_counts_by_hand():
+    plan = parse_floor_plan(PLAN)
+    mdp = plan.to_mdp()
+    idx = plan.state_index()
+    # Along the road (right ×4, then down ×2 into the goal): one turn, every move on a road
+    # but the last (the goal is not a road), none against it.
+    s = [idx[0, 0, c] for c in range(5)] + [idx[1, 1, 4]]
+    a = [RIGHT] * 4 + [DOWN, DOWN]
+    c = path_counts(plan, mdp, s, a)
+    assert c == {
+        "path_length": 6,
+        "path_cost": 7,
+        "wrong_road_direction": 0,
+        "restricted_moves": 0,
+        "road_cells": 5,
+        "direction_changes": 1,
+    }
+    # From (4,1) heading v: left into restricted (3,1), left inside it, up onto the road (2,0)
+    # across its direction, left onto (1,0) against the road's '>' direction.
+    s = [idx[1, 1, 4], idx[0, 1, 3], idx[0, 1, 2], idx[1, 0, 2]]
+    a = [LEFT, LEFT, UP, LEFT]
+    c = path_counts(plan, mdp, s, a)
+    assert c == {
+        "path_length": 4,
+        "path_cost": 7,
+        "wrong_road_direction": 1,
+        "restricted_moves": 2,
+        "road_cells": 2,
+        "direction_changes": 3,
+    }
+
+
+def test_greedy_path_stops_at_a_goal_or_before_a_loop():
+    mdp = parse_floor_plan("S.G\n").to_mdp()
+    lp = np.full((mdp.n_states, 4), -np.inf)
+    lp[:, RIGHT] = 0.0
+    s, a, done = greedy_path(mdp, lp, 0)
+    assert done and a.tolist() == [RIGHT, RIGHT] and len(s) == 2
+    lp[:, RIGHT], lp[:, LEFT] = -1.0, -0.5  # left everywhere it can: bounces at the wall
+    lp[0, LEFT] = lp[1, LEFT] = -np.inf  # not available in the first column
+    s, a, done = greedy_path(mdp, lp, 0)
+    assert not done and len(s) == len(set(s.tolist()))
+
+
+# ---------------------------------------------------------------------- manifest errors
+@pytest.mark.parametrize(
+    "text, fragments",
+    [
+        ("participant,map\nP1,a.txt\n", ["manifest.csv:1:", "recording or demos"]),
+        ("participant,map,recording\n,a.txt,p1.csv\n", ["manifest.csv:2:", "empty participant"]),
+        ("participant,map,recording\nP1,a.txt,p1.csv\n../x,a.txt,p1.csv\n", ["manifest.csv:3:", "'../x'"]),
+        (
+            "participant,map,recording\nP1,a.txt,missing.csv\n",
+            ["manifest.csv:2:", "missing.csv: no such file"],
+        ),
+        ("participant,map,recording\nP1,nomap.txt,p1.csv\n", ["manifest.csv:2:", "nomap.txt: no such file"]),
+        ("participant,map,recording,demos\nP1,a.txt,p1.csv,p3a.csv\n", ["manifest.csv:2:", "exactly one"]),
+        ("participant,map,recording\nP1,a.txt,p1.csv,extra\n", ["manifest.csv:2:", "4 fields"]),
+        ("participant,map,recording\nP1,a.txt,bad.csv\n", ["manifest.csv:2:", "bad.csv:2"]),
+    ],
+)
+def test_manifest_errors_name_the_file_and_line(study_dir, text, fragments):
+    write(study_dir / "bad.csv", "episode,t,x,y\n1,0,oops,0.5\n")
+    write(study_dir / "manifest.csv", text)
+    res = invoke("study", study_dir / "manifest.csv", "--out", study_dir / "out")
+    line = assert_input_error(res, *fragments)
+    assert str(study_dir / "manifest.csv") in line
+    assert not (study_dir / "out").exists()  # nothing is started before the inputs are known good
+
+
+def test_missing_manifest_and_a_foreign_out_dir(study_dir):
+    assert_input_error(
+        invoke("study", study_dir / "nope.csv", "--out", study_dir / "o"), "nope.csv", "no such manifest"
+    )
+    (study_dir / "busy").mkdir()
+    write(study_dir / "busy" / "mine.txt", "keep me")
+    assert_input_error(
+        invoke("study", study_dir / "manifest.csv", "--out", study_dir / "busy"),
+        "not empty and holds no study",
+    )
+    assert (study_dir / "busy" / "mine.txt").read_text() == "keep me"
+
+
+# ----------------------------------------------------------------------------- running
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
+    out = study_dir / "out"
+    key_b = None
+    from expertise_irl.userstudy.run import map_key
+
+    key_b = map_key(parse_floor_plan("S...v\n.#..v\n....G\n", name="b.txt"))
+    # First run: the task of floor plan b fails (injected), so the study stops with exit 1.
+    monkeypatch.setenv("EXPERTISE_IRL_FAULTS", f"raise:{key_b}")
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
+    assert res.exit_code == 1, res.output
+    assert f"inference task {key_b} failed" in res.stderr
+    assert not (out / "study.csv").exists()
+    monkeypatch.delenv("EXPERTISE_IRL_FAULTS")
+    # The rerun runs only what is missing: b's inference task, then the two optimal tasks.
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
+    assert res.exit_code == 0, res.output
+    assert "3 engine task(s) run, 1 already done" in res.stdout
+    rows = read_csv(out / "study.csv")
+    assert [r["participant"] for r in rows] == ["P1", "P2", "P3"]
+    assert list(rows[0]) == [
+        "participant",
+        "tasks",
+        "episodes",
+        "beta_hat",
+        "theta_length",
+        "theta_restricted",
+        "theta_road",
+        "p_high",
+        "p_medium",
+        "p_low",
+        "path_length",
+        "path_cost",
+        "wrong_road_direction",
+        "restricted_moves",
+        "road_cells",
+        "direction_changes",
+        "optimal_path_length",
+        "optimal_path_cost",
+        "optimal_wrong_road_direction",
+        "optimal_restricted_moves",
+        "optimal_road_cells",
+        "optimal_direction_changes",
+        "optimal_reached_goal",
+        "filled_gaps",
+        "snapped_samples",
+    ]
+    p1, p3 = rows[0], rows[2]
+    assert (p1["path_length"], p1["path_cost"], p1["road_cells"], p1["direction_changes"]) == (
+        "6",
+        "7",
+        "5",
+        "1",
+    )
+    assert p3["tasks"] == "2" and p3["path_length"] == "12"
+    tasks = read_csv(out / "tasks.csv")
+    assert [(t["participant"], t["line"]) for t in tasks] == [
+        ("P1", "2"),
+        ("P2", "3"),
+        ("P3", "4"),
+        ("P3", "5"),
+    ]
+    assert tasks[2]["demos"].endswith("p3a.csv") and tasks[2]["recording"] == ""
+    # P3's joint posterior is the normalised product of its two tasks' (uniform prior).
+    doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
+    ll = np.array([h["log_likelihood"] for h in doc["hypotheses"]], dtype=float)
+    per_task = [np.array(doc["tasks"][i]["beta_hat"]) for i in range(2)]
+    assert doc["method"] == "discrete" and len(doc["hypotheses"]) == 95
+    p = np.array([h["probability"] for h in doc["hypotheses"]])
+    np.testing.assert_allclose(p, np.exp(ll - ll.max()) / np.exp(ll - ll.max()).sum(), rtol=1e-9)
+    assert doc["beta_hat"] != pytest.approx(per_task[0]) and doc["beta_hat"] != pytest.approx(per_task[1])
+    assert (out / "participants" / "P3" / "P3.png").read_bytes()[:4] == b"\x89PNG"
+    md = (out / "study.md").read_text().splitlines()
+    assert sum(ln.startswith(("| P1 |", "| P2 |", "| P3 |")) for ln in md) == 6  # Tables V and VI
+    before = (out / "study.csv").read_bytes()
+    # A third run finds everything done and writes the same tables.
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
+    assert res.exit_code == 0 and "0 engine task(s) run, 4 already done" in res.stdout
+    assert (out / "study.csv").read_bytes() == before
+    # Other options on the same DIR are refused, not mixed in.
+    assert_input_error(
+        invoke("study", study_dir / "manifest.csv", "--out", out, "--betas", "0.1,1"),
+        "holds a study of other inputs or options",
+    )
+
+
+# ----------------------------------------------------------------------- bundled study
+def test_bundled_recording_is_what_its_generator_command_writes(tmp_path):
+    """The first line of generate.sh, run again, gives the bundled P01 recording byte for byte."""
+    line = next(ln for ln in (EXAMPLE / "generate.sh").read_text().splitlines() if ln.startswith("rec "))
+    args = line.split()[1:]
+    args[args.index("--out") + 1] = str(tmp_path / "P01.csv")
+    args[0] = str(EXAMPLE / args[0])
+    res = invoke("simulate-recordings", *args, "--model", "maxent-relative", "--max-steps", "3000")
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "P01.csv").read_bytes() == (EXAMPLE / "recordings" / "P01.csv").read_bytes()
+
+
+@pytest.mark.slow
+def test_bundled_study_recovers_the_ordering_of_expertise(tmp_path):
+    res = invoke("study", "example", "--out", tmp_path / "s", "--fill-gaps", "--model", "maxent-relative")
+    assert res.exit_code == 0, res.output
+    est = {r["participant"]: r for r in read_csv(tmp_path / "s" / "study.csv")}
+    truth = {r["participant"]: float(r["beta"]) for r in read_csv(EXAMPLE / "truth.csv")}
+    ids = sorted(truth)
+    rho = spearmanr([truth[i] for i in ids], [float(est[i]["beta_hat"]) for i in ids]).statistic
+    # Eight people, one episode each (two for P07), seeded. The β grid (0.1, 0.3, 1, 3, 10) has
+    # no value between 0.1 and 0.3, so the three truths 0.1–0.3 can trade places: those swaps
+    # alone cost at most 1 − 6·8/(8·63) ≈ 0.90. Beyond that the ordering must hold: ρ ≥ 0.85
+    # fails as soon as a participant from 0.8 up is ranked among the first three.
+    assert rho >= 0.85, rho
+    assert int(est["P04"]["filled_gaps"]) == 1
+    assert all(int(r["optimal_reached_goal"]) == int(r["episodes"]) for r in est.values())
