@@ -34,7 +34,8 @@ from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet,
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.inference.birl import extended_birl
 from expertise_irl.inference.conditions import out_of_set_truth
-from expertise_irl.inference.gradient import map_estimate, nuts_posterior
+from expertise_irl.inference.gradient import map_estimate
+from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.metrics import cosine_similarity, expertise_distance, policy_regret
 from expertise_irl.worlds.zones import generate_map
 

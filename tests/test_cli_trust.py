@@ -215,11 +215,11 @@ def test_maps_and_help_do_not_import_jax():
 # ----------------------------------------------------------------------------- API
 def test_continuous_methods_are_importable_from_the_top_level():
     import expertise_irl as ei
-    from expertise_irl.inference import birl, gradient
+    from expertise_irl.inference import birl, gradient, nuts
 
     assert ei.extended_birl is birl.extended_birl
     assert ei.map_estimate is gradient.map_estimate
-    assert ei.nuts_posterior is gradient.nuts_posterior
+    assert ei.nuts_posterior is nuts.nuts_posterior
     assert set(ei.__all__) <= set(dir(ei)) | {"__version__"}
     for name in ei.__all__:
         assert getattr(ei, name) is not None

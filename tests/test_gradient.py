@@ -11,7 +11,8 @@ import pytest
 
 from expertise_irl.demos import Trajectories, simulate
 from expertise_irl.errors import InputError
-from expertise_irl.inference.gradient import BETA_PRIOR_MEAN, BETA_PRIOR_SD, map_estimate, nuts_posterior
+from expertise_irl.inference.gradient import BETA_PRIOR_MEAN, BETA_PRIOR_SD, map_estimate
+from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.likelihood import make_log_likelihood, pair_counts
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.planning import log_likelihood, solve

@@ -288,3 +288,33 @@ def test_bundled_study_recovers_the_ordering_of_expertise(tmp_path):
     assert rho >= 0.85, rho
     assert int(est["P04"]["filled_gaps"]) == 1
     assert all(int(r["optimal_reached_goal"]) == int(r["episodes"]) for r in est.values())
+
+
+def test_map_and_nuts_studies_fit_each_participant_on_all_their_tasks(study_dir):
+    from expertise_irl.demos import read_demos_csv
+    from expertise_irl.experiments.studies.user_study import participant_seed
+    from expertise_irl.inference.gradient import map_estimate
+    from expertise_irl.recordings import discretise_recording
+
+    out = study_dir / "out_map"
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--method", "map", "--workers", "1")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
+    assert doc["method"] == "map" and doc["data"]["tasks"] == 2
+    # The same MAP as the library's on P3's two tasks (same seed: the participant's).
+    plan_a, plan_b = (parse_floor_plan((study_dir / n).read_text(), name=n) for n in ("a.txt", "b.txt"))
+    a = read_demos_csv(study_dir / "p3a.csv", plan_a.to_mdp())
+    b = discretise_recording(study_dir / "p3b.csv", plan_b).trajectories
+    direct = map_estimate([plan_a.to_mdp(), plan_b.to_mdp()], [a, b], n_starts=4,
+                          rng=np.random.default_rng(participant_seed("P3")))
+    assert doc["map"]["log_posterior"] == pytest.approx(direct.log_posterior, abs=1e-6)
+    np.testing.assert_allclose(doc["theta_hat"], direct.theta, atol=1e-4)
+
+    out = study_dir / "out_nuts"
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--method", "nuts", "--workers", "1")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
+    assert doc["method"] == "nuts" and doc["diagnostics"]["chains"] == 4
+    rows = read_csv(out / "study.csv")
+    # NUTS's group probabilities are fractions of its draws: they sum to 1.
+    assert sum(float(rows[2][f"p_{g}"]) for g in ("high", "medium", "low")) == pytest.approx(1.0)

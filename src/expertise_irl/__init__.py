@@ -29,7 +29,7 @@ _EXPORTS = {
     "compare_models": ".inference.evidence", "MODELS": ".models",
     "extended_birl": ".inference.birl", "BIRLResult": ".inference.birl",
     "map_estimate": ".inference.gradient", "MAPResult": ".inference.gradient",
-    "nuts_posterior": ".inference.gradient", "NUTSResult": ".inference.gradient",
+    "nuts_posterior": ".inference.nuts", "NUTSResult": ".inference.nuts",
     "TabularMDP": ".mdp",
     "cosine_similarity": ".metrics", "expertise_distance": ".metrics", "policy_regret": ".metrics",
     "SoftSolution": ".planning", "solve": ".planning",
@@ -96,7 +96,8 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .inference.belief import DiscreteBelief
     from .inference.birl import BIRLResult, extended_birl
     from .inference.evidence import compare_models
-    from .inference.gradient import MAPResult, NUTSResult, map_estimate, nuts_posterior
+    from .inference.gradient import MAPResult, map_estimate
+    from .inference.nuts import NUTSResult, nuts_posterior
     from .inference.online import OnlineEstimator
     from .mdp import TabularMDP
     from .metrics import cosine_similarity, expertise_distance, policy_regret

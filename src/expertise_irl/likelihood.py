@@ -20,7 +20,7 @@ the familiar max-ent IRL gradient; ∂L/∂θ = ∂L/∂w / β and ∂L/∂β = 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -72,74 +72,192 @@ def _iterate(step, x0, gamma, tol, max_iter):
     return jnp.where(unconverged(x, d), jnp.nan, x), k
 
 
+class WarmStart(NamedTuple):
+    """Where to start the next solve: converged values and adjoint of a nearby hypothesis.
+
+    Both are in the solver's layout (``[n_rows, 1]``); the result of a solve never depends
+    on the start beyond its tolerance, only the number of sweeps does.
+    """
+
+    v: jnp.ndarray  # scaled values V/β
+    lam: jnp.ndarray  # adjoint of the fixed point for the log-likelihood's gradient
+
+
 def _fixed_point_fn(prep: kernel.Prepared, gamma: float, tol: float, max_iter: int, model: str):
-    """``v*(w, v0)``: the model's fixed point for one hypothesis, with an implicit gradient.
+    """``v*(w, v0, lam0)``: the model's fixed point for one hypothesis, with an implicit gradient.
 
     Forward: red-black sweeps of the batched solver (:func:`expertise_irl.solver.sweep`) on one
-    lane. Backward: the adjoint ``λ = g + (∂S/∂v)ᵀ λ`` of the same sweep map ``S`` (it has the
-    same fixed point, so implicit differentiation through it is exact), iterated to ``tol``.
+    lane, from ``v0``. Backward: the adjoint ``λ = g + (∂S/∂v)ᵀ λ`` of the same sweep map ``S``
+    (it has the same fixed point, so implicit differentiation through it is exact), iterated
+    to ``tol`` from ``lam0`` (or from ``g`` when ``lam0`` is None). Returns the fixed point and
+    ``adjoint(w, v, g, lam0)``, the backward iteration on its own.
     """
     def step(w, v):
         # The zero row (terminal states, padding) is a constant 0, not a fixed point of its own:
         # left as the identity it would give the adjoint an eigenvalue 1 that never decays.
         return kernel.sweep(prep, w, v, gamma, model)[0].at[-1].set(0.0)
 
+    def adjoint(w, v, g, lam0):
+        _, vjp_v = jax.vjp(lambda v_: step(w, v_), v)
+        start = g if lam0 is None else lam0
+        return _iterate(lambda lam: g + vjp_v(lam)[0], start, gamma, tol, max_iter)[0]
+
     @jax.custom_vjp
-    def fixed_point(w, v0):
+    def fixed_point(w, v0, lam0):
         return _iterate(lambda v: step(w, v), v0, gamma, tol, max_iter)[0]
 
-    def fwd(w, v0):
-        v = fixed_point(w, v0)
-        return v, (w, v)
+    def fwd(w, v0, lam0):
+        v = fixed_point(w, v0, lam0)
+        return v, (w, v, lam0)
 
     def bwd(res, g):
-        w, v = res
-        _, vjp_v = jax.vjp(lambda v_: step(w, v_), v)
-        lam, _ = _iterate(lambda lam: g + vjp_v(lam)[0], g, gamma, tol, max_iter)
+        w, v, lam0 = res
+        lam = adjoint(w, v, g, lam0)
         _, vjp_w = jax.vjp(lambda w_: step(w_, v), w)
-        return vjp_w(lam)[0], jnp.zeros_like(v)
+        return vjp_w(lam)[0], jnp.zeros_like(v), None if lam0 is None else jnp.zeros_like(lam0)
 
     fixed_point.defvjp(fwd, bwd)
-    return fixed_point
+    return fixed_point, adjoint
+
+
+class LogLikelihood:
+    """``f(theta, beta, v0=None, *, start=None) -> (L, v)``: JAX-differentiable Eq. 11 for one
+    hypothesis (built by :func:`make_log_likelihood`).
+
+    ``theta [K]`` and ``beta`` are JAX scalars/arrays; ``v`` is the converged scaled value
+    ``V/β`` ``[S]``, which callers may pass back as ``v0`` to warm-start the next solve.
+    ``start`` (a :class:`WarmStart` from :meth:`start_at`) warm-starts both the forward solve
+    and the adjoint of the gradient. ``jax.grad(lambda t, b: f(t, b)[0], argnums=(0, 1))``
+    gives the exact gradient.
+    """
+
+    def __init__(self, mdp: TabularMDP, counts: np.ndarray, tol: float, max_iter: int, model: str):
+        check_model(model)
+        counts = np.asarray(counts, dtype=np.float64)
+        if counts.shape != (mdp.n_states, mdp.n_actions):
+            raise InputError(f"counts must have shape [S, A] = [{mdp.n_states}, {mdp.n_actions}]")
+        self._prep = prep = kernel.prepare(mdp, jnp.float64)
+        nb = prep.n_block
+        # Counts in the solver's layout [2, A, n_block]; terminal and padding rows observe nothing.
+        n_blk = np.zeros((2, mdp.n_actions, nb))
+        live = np.flatnonzero(~mdp.terminal)
+        rows = prep.rows[live]
+        n_blk[rows // nb, :, rows % nb] = np.where(mdp.available, counts, 0.0)[live]
+        self._n_blk = jnp.asarray(n_blk)
+        self._observed = self._n_blk > 0
+        self._gamma = float(mdp.gamma)
+        self._model = model
+        self._fixed_point, self._adjoint = _fixed_point_fn(prep, self._gamma, tol, max_iter, model)
+        self._state_rows = jnp.asarray(prep.rows)
+        # Compiled as a whole: called eagerly (NumPyro traces its model outside any jit to find
+        # the sample sites), it would otherwise run, and compile, one primitive at a time.
+        self._call = jax.jit(self._evaluate)
+
+    def _weights(self, theta, beta):
+        return (jnp.asarray(theta, jnp.float64) / beta)[:, None]  # [K, 1 lane]
+
+    def _from_values(self, w, v):
+        """Eq. 11 given the converged values ``v`` (solver layout)."""
+        prep, gamma, model = self._prep, self._gamma, self._model
+        log_pi = jnp.stack([kernel.block_backup(prep, b, w, v, gamma, model)[1][..., 0] for b in (0, 1)])
+        # Unobserved pairs (including unavailable ones, log π = -inf) contribute nothing.
+        return jnp.sum(jnp.where(self._observed, self._n_blk * log_pi, 0.0))
+
+    def zero_start(self) -> WarmStart:
+        """The cold start: values and adjoint 0."""
+        z = jnp.zeros((self._prep.n_rows, 1))
+        return WarmStart(z, z)
+
+    def __call__(self, theta, beta, v0=None, *, start: WarmStart | None = None):
+        return self._call(theta, beta, v0, start)
+
+    def _evaluate(self, theta, beta, v0, start):
+        w = self._weights(theta, beta)
+        lam0 = None
+        if start is not None:
+            v_init, lam0 = start.v, jax.lax.stop_gradient(start.lam)
+        elif v0 is not None:
+            v_init = (jnp.zeros((self._prep.n_rows, 1)).at[self._state_rows, 0]
+                      .set(jnp.asarray(v0, jnp.float64)).at[-1, 0].set(0.0))
+        else:
+            v_init = jnp.zeros((self._prep.n_rows, 1))
+        v = self._fixed_point(w, jax.lax.stop_gradient(v_init), lam0)
+        return self._from_values(w, v), v[self._state_rows, 0]
+
+    def start_at(self, theta, beta, start: WarmStart | None = None) -> WarmStart:
+        """The converged values and gradient adjoint at ``(theta, beta)``, solved from ``start``:
+        the best start for hypotheses near this one."""
+        start = self.zero_start() if start is None else start
+        w = jax.lax.stop_gradient(self._weights(theta, beta))
+        v = jax.lax.stop_gradient(self._fixed_point(w, start.v, None))
+        g = jax.grad(lambda v_: self._from_values(w, v_))(v)
+        return WarmStart(v, self._adjoint(w, v, g, start.lam))
 
 
 def make_log_likelihood(
     mdp: TabularMDP, counts: np.ndarray, *, tol: float = 1e-10, max_iter: int = 200_000,
     model: str = DEFAULT_MODEL,
-) -> Callable:
-    """``f(theta, beta, v0=None) -> (L, v)``: JAX-differentiable Eq. 11 for one hypothesis.
+) -> LogLikelihood:
+    """``f(theta, beta, v0=None, *, start=None) -> (L, v)``: JAX-differentiable Eq. 11 for one
+    hypothesis (see :class:`LogLikelihood`).
 
-    ``theta [K]`` and ``beta`` are JAX scalars/arrays; ``v`` is the converged scaled value
-    ``V/β`` ``[S]``, which callers may pass back as ``v0`` to warm-start the next solve.
-    ``jax.grad(lambda t, b: f(t, b)[0], argnums=(0, 1))`` gives the exact gradient.
     ``model`` is the observation model (:mod:`expertise_irl.models`); the backup is the one
-    the batched solver uses.
+    the batched solver uses. Solves stop when ``V/β`` is within ``tol``; one that has not
+    converged after ``max_iter`` sweeps gives NaN.
     """
-    check_model(model)
-    counts = np.asarray(counts, dtype=np.float64)
-    if counts.shape != (mdp.n_states, mdp.n_actions):
-        raise InputError(f"counts must have shape [S, A] = [{mdp.n_states}, {mdp.n_actions}]")
-    prep = kernel.prepare(mdp, jnp.float64)
-    nb = prep.n_block
-    # Counts in the solver's layout [2, A, n_block]; terminal and padding rows observe nothing.
-    n_blk = np.zeros((2, mdp.n_actions, nb))
-    live = np.flatnonzero(~mdp.terminal)
-    rows = prep.rows[live]
-    n_blk[rows // nb, :, rows % nb] = np.where(mdp.available, counts, 0.0)[live]
-    n_blk = jnp.asarray(n_blk)
-    observed = n_blk > 0
-    gamma = float(mdp.gamma)
-    fixed_point = _fixed_point_fn(prep, gamma, tol, max_iter, model)
-    state_rows = jnp.asarray(prep.rows)
+    return LogLikelihood(mdp, counts, tol, max_iter, model)
 
-    def f(theta, beta, v0=None):
-        w = (jnp.asarray(theta, jnp.float64) / beta)[:, None]  # [K, 1 lane]
-        v_init = jnp.zeros((prep.n_rows, 1))
+
+class TaskSum:
+    """The log-likelihood of one person's demonstrations on several tasks: the sum over tasks.
+
+    Each task is an MDP with the same features (a person who did several maps, specifications
+    or start points) and its own counts. Same interface as :class:`LogLikelihood`; a start is
+    a tuple with one :class:`WarmStart` per task, and ``v`` is None.
+    """
+
+    def __init__(self, parts: list[LogLikelihood]):
+        self._parts = parts
+
+    def zero_start(self) -> tuple:
+        return tuple(p.zero_start() for p in self._parts)
+
+    def __call__(self, theta, beta, v0=None, *, start: tuple | None = None):
         if v0 is not None:
-            v_init = v_init.at[state_rows, 0].set(jnp.asarray(v0, jnp.float64)).at[-1, 0].set(0.0)
-        v = fixed_point(w, jax.lax.stop_gradient(v_init))
-        log_pi = jnp.stack([kernel.block_backup(prep, b, w, v, gamma, model)[1][..., 0] for b in (0, 1)])
-        # Unobserved pairs (including unavailable ones, log π = -inf) contribute nothing.
-        return jnp.sum(jnp.where(observed, n_blk * log_pi, 0.0)), v[state_rows, 0]
+            raise InputError("v0 warm starts a single task; pass start= for several")
+        starts = (None,) * len(self._parts) if start is None else start
+        return sum(p(theta, beta, start=s)[0] for p, s in zip(self._parts, starts, strict=True)), None
 
-    return f
+    def start_at(self, theta, beta, start: tuple | None = None) -> tuple:
+        starts = (None,) * len(self._parts) if start is None else start
+        return tuple(p.start_at(theta, beta, s) for p, s in zip(self._parts, starts, strict=True))
+
+
+def as_tasks(mdp, trajs) -> list[tuple[TabularMDP, Trajectories]]:
+    """``[(mdp, trajs), ...]`` from one MDP and its trajectories or equal-length lists of both.
+
+    Raises :class:`InputError` when the lists differ in length, are empty, or the MDPs do not
+    share their features (the same θ must mean the same thing on every task).
+    """
+    if isinstance(mdp, TabularMDP) != isinstance(trajs, Trajectories):
+        raise InputError("give one MDP with its trajectories, or a list of each")
+    if isinstance(mdp, TabularMDP):
+        return [(mdp, trajs)]
+    mdps, trajss = list(mdp), list(trajs)
+    if not mdps or len(mdps) != len(trajss):
+        raise InputError(f"need one list of trajectories per MDP, got {len(trajss)} for {len(mdps)} MDPs")
+    names = tuple(mdps[0].feature_names)
+    for i, m in enumerate(mdps[1:], start=2):
+        if tuple(m.feature_names) != names:
+            raise InputError(f"task {i} has features {', '.join(m.feature_names)}, task 1 has "
+                             f"{', '.join(names)}: every task must share the features")
+    return list(zip(mdps, trajss, strict=True))
+
+
+def tasks_log_likelihood(mdp, trajs, *, tol: float = 1e-10, max_iter: int = 200_000,
+                         model: str = DEFAULT_MODEL) -> LogLikelihood | TaskSum:
+    """The log-likelihood of ``trajs`` on ``mdp`` (:class:`LogLikelihood`), or, given lists of
+    MDPs and trajectories (one per task, see :func:`as_tasks`), their sum (:class:`TaskSum`)."""
+    tasks = as_tasks(mdp, trajs)
+    parts = [make_log_likelihood(m, pair_counts(m, t), tol=tol, max_iter=max_iter, model=model) for m, t in tasks]
+    return parts[0] if isinstance(mdp, TabularMDP) else TaskSum(parts)

@@ -320,12 +320,10 @@ def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, for
     opts.validate()
     prior_text = PRIORS[opts.prior].text
     _note(f"prior ({opts.prior}): {prior_text}; model {opts.model}")
-    if method == "nuts":  # NumPyro draws its own bar (all chains advance together)
-        res = run_method(method, mdp, trajs, opts, seed, progress=lambda done, total: None)
-    else:
-        unit, label = ("iterations", "Algorithm 1") if method == "birl" else ("starts", "MAP (L-BFGS-B)")
-        with _progress(unit) as bar:
-            res = run_method(method, mdp, trajs, opts, seed, progress=_solve_progress(bar, label))
+    unit, label = {"birl": ("iterations", "Algorithm 1"), "map": ("starts", "MAP (L-BFGS-B)"),
+                   "nuts": ("iterations", f"NUTS ({opts.chains} chains, warm-up included)")}[method]
+    with _progress(unit) as bar:
+        res = run_method(method, mdp, trajs, opts, seed, progress=_solve_progress(bar, label))
     settings = {"command": "infer", "method": method, **source, "seed": seed, **asdict(opts),
                 "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
                 "gamma": mdp.gamma, "prior_text": prior_text}

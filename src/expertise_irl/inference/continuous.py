@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -64,19 +64,26 @@ class MethodOptions:
         check_model(self.model, "--model")
 
 
-def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOptions,
+def run_method(method: str, mdp: TabularMDP | Sequence[TabularMDP],
+               trajs: Trajectories | Sequence[Trajectories], opts: MethodOptions,
                seed: int, *, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Run ``method`` and return its result fields, plus ``draws`` (chain, θ, β) if it samples.
+
+    ``mdp`` and ``trajs`` may be equal-length lists, one per task of the same person (map and
+    nuts sum the log-likelihoods; Algorithm 1 takes one task).
 
     ``diagnostics`` holds each method's statistics, ``warnings`` (see
     :mod:`expertise_irl.inference.diagnostics` for the thresholds) and ``unavailable``
     (statistic -> why it could not be computed). ``progress(done, total)`` follows
-    Algorithm 1's iterations and MAP's starts; for NUTS, any ``progress`` turns on NumPyro's
-    own bar (stderr).
+    Algorithm 1's iterations, MAP's starts and NUTS's iterations (warm-up included).
     """
+    from ..likelihood import as_tasks  # imports JAX: not at module level (the CLI's --help)
+
     opts.validate()
     t0 = time.perf_counter()
-    names = mdp.feature_names
+    names = as_tasks(mdp, trajs)[0][0].feature_names
+    if method == "birl" and not isinstance(mdp, TabularMDP):
+        raise InputError("--method birl (Algorithm 1) takes one task; use map or nuts for several")
     if method == "birl":
         from .birl import extended_birl
         from .gradient import credible_intervals
@@ -118,16 +125,17 @@ def run_method(method: str, mdp: TabularMDP, trajs: Trajectories, opts: MethodOp
             "diagnostics": diag,
         }
     elif method == "nuts":
-        from .gradient import nuts_posterior
+        from .nuts import nuts_posterior
 
         r = nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
-                           num_chains=opts.chains, seed=seed, progress_bar=progress is not None,
+                           num_chains=opts.chains, seed=seed, progress=progress,
                            prior=opts.prior, model=opts.model)
         C, D, K = r.theta.shape
         theta, beta = r.theta.reshape(-1, K), r.beta.reshape(-1)
         best = int(np.argmax(r.log_density.reshape(-1)))
         diag = {"r_hat": r.r_hat, "ess_bulk": r.ess, "divergences": r.divergences,
-                "chains": C, "draws_per_chain": D, "unavailable": dict(r.unavailable)}
+                "chains": C, "draws_per_chain": D, "mean_tree_size": r.mean_tree_size,
+                "mean_accept_prob": r.mean_accept_prob, "unavailable": dict(r.unavailable)}
         diag["warnings"] = nuts_warnings(diag, names)
         out = {
             "theta_hat": r.mean_theta.tolist(), "beta_hat": r.mean_beta,

@@ -414,8 +414,12 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
             doc = est["doc"]
             doc["settings"] = settings
         else:
+            res = dict(est["doc"])
+            if res.get("draws"):  # stored as JSON; continuous_result takes (chain, θ, β) arrays
+                dr = res["draws"]
+                res["draws"] = (np.asarray(dr["chain"]), np.asarray(dr["theta"]), np.asarray(dr["beta"]))
             doc = continuous_result(
-                dict(est["doc"]),
+                res,
                 method=opts.method,
                 feature_names=names,
                 settings=settings,

@@ -245,9 +245,9 @@ def draw_point(ax: Axes, value: float, label: str, *, lo: float, hi: float, log:
     """A single estimate on an axis from ``lo`` to ``hi`` (gid ``"point"``): no posterior to draw."""
     ax.plot([value], [0.5], ls="", marker="D", ms=8, color=POINT_COLOR, gid="point")
     ax.axvline(value, color=POINT_COLOR, lw=0.8, alpha=0.5)
+    ax.set_xlim(lo, hi)  # before the log scale: a lone point's automatic limits are degenerate
     if log:
         ax.set_xscale("log")
-    ax.set_xlim(lo, hi)
     ax.set_ylim(0, 1)
     ax.set_yticks([])
     ax.set_title(f"{label} = {value:{'.3g' if log else '.3f'}}  (point estimate)", fontsize=8.5)
