@@ -7,6 +7,22 @@ import platform
 import sys
 from datetime import UTC, datetime
 
+#: SIMD extensions that matter for NumPy's and XLA's exp/log and reduction kernels.
+SIMD_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512vl", "neon", "asimd")
+
+
+def cpu_flags() -> str:
+    """The SIMD flags of this CPU among :data:`SIMD_FLAGS` (from /proc/cpuinfo)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith(("flags", "Features")):
+                    have = set(line.split(":", 1)[1].split())
+                    return " ".join(f for f in SIMD_FLAGS if f in have) or "(none of interest)"
+    except OSError:
+        pass
+    return "unknown"
+
 
 def machine_info() -> dict[str, object]:
     import jax
@@ -28,6 +44,7 @@ def machine_info() -> dict[str, object]:
     return {
         "date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "cpu": cpu,
+        "cpu_flags": cpu_flags(),
         "cores": os.cpu_count(),
         "memory_gib": round(mem_gib, 1),
         "python": sys.version.split()[0],

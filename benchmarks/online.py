@@ -23,29 +23,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _machine import machine_info
+from _machine import cpu_flags, machine_info
 from soft_vi import build_workload
 
 from expertise_irl.demos import Trajectories, simulate
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.inference.online import OnlineEstimator
-
-#: SIMD extensions that matter for NumPy's exp/log and reduction kernels.
-SIMD_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512vl", "neon", "asimd")
-
-
-def cpu_flags() -> str:
-    """The SIMD flags of this CPU among :data:`SIMD_FLAGS` (from /proc/cpuinfo)."""
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith(("flags", "Features")):
-                    have = set(line.split(":", 1)[1].split())
-                    return " ".join(f for f in SIMD_FLAGS if f in have) or "(none of interest)"
-    except OSError:
-        pass
-    return "unknown"
 
 
 def main() -> None:

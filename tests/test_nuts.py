@@ -117,5 +117,17 @@ def test_tasks_must_share_features_and_pair_up(corridor, corridor_demos):
         tasks_log_likelihood([corridor, corridor], [corridor_demos])
     with pytest.raises(InputError, match="task 2 has features a, b, c, d, e"):
         tasks_log_likelihood([corridor, other], [corridor_demos, corridor_demos])
-    with pytest.raises(InputError, match="birl .* takes one task"):
+    with pytest.raises(InputError, match=r"birl .* takes one task"):
         run_method("birl", [corridor], [corridor_demos], MethodOptions(iterations=10), 0)
+
+
+def test_counts_passed_in_replace_the_ones_built_in(corridor, corridor_demos):
+    other = simulate(corridor, np.array([0.1, 0.1, 0.6, 0.1, 0.1]), 2.0, 4, np.random.default_rng(9))
+    f = make_log_likelihood(corridor, pair_counts(corridor, corridor_demos), tol=1e-12)
+    g = make_log_likelihood(corridor, pair_counts(corridor, other), tol=1e-12)
+    theta = jnp.asarray([0.3, 0.3, 0.2, 0.1, 0.1])
+    assert float(f(theta, 0.8)[0]) != pytest.approx(float(g(theta, 0.8)[0]))
+    assert float(f(theta, 0.8, counts=g.counts)[0]) == pytest.approx(float(g(theta, 0.8)[0]), rel=1e-12)
+    grad = jax.grad(lambda t, n: f(t, 0.8, counts=n)[0])
+    np.testing.assert_allclose(np.asarray(grad(theta, g.counts)),
+                               np.asarray(jax.grad(lambda t: g(t, 0.8)[0])(theta)), rtol=1e-9)

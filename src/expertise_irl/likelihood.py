@@ -127,8 +127,9 @@ class LogLikelihood:
     ``theta [K]`` and ``beta`` are JAX scalars/arrays; ``v`` is the converged scaled value
     ``V/β`` ``[S]``, which callers may pass back as ``v0`` to warm-start the next solve.
     ``start`` (a :class:`WarmStart` from :meth:`start_at`) warm-starts both the forward solve
-    and the adjoint of the gradient. ``jax.grad(lambda t, b: f(t, b)[0], argnums=(0, 1))``
-    gives the exact gradient.
+    and the adjoint of the gradient. ``counts`` replaces the observed counts (in the layout of
+    :attr:`counts`), as an input rather than a constant of a compiled program.
+    ``jax.grad(lambda t, b: f(t, b)[0], argnums=(0, 1))`` gives the exact gradient.
     """
 
     def __init__(self, mdp: TabularMDP, counts: np.ndarray, tol: float, max_iter: int, model: str):
@@ -143,8 +144,9 @@ class LogLikelihood:
         live = np.flatnonzero(~mdp.terminal)
         rows = prep.rows[live]
         n_blk[rows // nb, :, rows % nb] = np.where(mdp.available, counts, 0.0)[live]
-        self._n_blk = jnp.asarray(n_blk)
-        self._observed = self._n_blk > 0
+        #: The counts in the solver's layout; pass them back as ``counts=`` so that a compiled
+        #: program takes the data as an input (one compile serves every data set on this map).
+        self.counts = jnp.asarray(n_blk)
         self._gamma = float(mdp.gamma)
         self._model = model
         self._fixed_point, self._adjoint = _fixed_point_fn(prep, self._gamma, tol, max_iter, model)
@@ -156,22 +158,22 @@ class LogLikelihood:
     def _weights(self, theta, beta):
         return (jnp.asarray(theta, jnp.float64) / beta)[:, None]  # [K, 1 lane]
 
-    def _from_values(self, w, v):
+    def _from_values(self, w, v, counts):
         """Eq. 11 given the converged values ``v`` (solver layout)."""
         prep, gamma, model = self._prep, self._gamma, self._model
         log_pi = jnp.stack([kernel.block_backup(prep, b, w, v, gamma, model)[1][..., 0] for b in (0, 1)])
         # Unobserved pairs (including unavailable ones, log π = -inf) contribute nothing.
-        return jnp.sum(jnp.where(self._observed, self._n_blk * log_pi, 0.0))
+        return jnp.sum(jnp.where(counts > 0, counts * log_pi, 0.0))
 
     def zero_start(self) -> WarmStart:
         """The cold start: values and adjoint 0."""
         z = jnp.zeros((self._prep.n_rows, 1))
         return WarmStart(z, z)
 
-    def __call__(self, theta, beta, v0=None, *, start: WarmStart | None = None):
-        return self._call(theta, beta, v0, start)
+    def __call__(self, theta, beta, v0=None, *, start: WarmStart | None = None, counts=None):
+        return self._call(theta, beta, v0, start, self.counts if counts is None else counts)
 
-    def _evaluate(self, theta, beta, v0, start):
+    def _evaluate(self, theta, beta, v0, start, counts):
         w = self._weights(theta, beta)
         lam0 = None
         if start is not None:
@@ -182,15 +184,16 @@ class LogLikelihood:
         else:
             v_init = jnp.zeros((self._prep.n_rows, 1))
         v = self._fixed_point(w, jax.lax.stop_gradient(v_init), lam0)
-        return self._from_values(w, v), v[self._state_rows, 0]
+        return self._from_values(w, v, counts), v[self._state_rows, 0]
 
-    def start_at(self, theta, beta, start: WarmStart | None = None) -> WarmStart:
+    def start_at(self, theta, beta, start: WarmStart | None = None, counts=None) -> WarmStart:
         """The converged values and gradient adjoint at ``(theta, beta)``, solved from ``start``:
         the best start for hypotheses near this one."""
         start = self.zero_start() if start is None else start
         w = jax.lax.stop_gradient(self._weights(theta, beta))
         v = jax.lax.stop_gradient(self._fixed_point(w, start.v, None))
-        g = jax.grad(lambda v_: self._from_values(w, v_))(v)
+        counts = self.counts if counts is None else counts
+        g = jax.grad(lambda v_: self._from_values(w, v_, counts))(v)
         return WarmStart(v, self._adjoint(w, v, g, start.lam))
 
 
@@ -212,25 +215,29 @@ class TaskSum:
     """The log-likelihood of one person's demonstrations on several tasks: the sum over tasks.
 
     Each task is an MDP with the same features (a person who did several maps, specifications
-    or start points) and its own counts. Same interface as :class:`LogLikelihood`; a start is
-    a tuple with one :class:`WarmStart` per task, and ``v`` is None.
+    or start points) and its own counts. Same interface as :class:`LogLikelihood`; a start and
+    the counts are tuples with one entry per task, and ``v`` is None.
     """
 
     def __init__(self, parts: list[LogLikelihood]):
         self._parts = parts
+        self.counts = tuple(p.counts for p in parts)
 
     def zero_start(self) -> tuple:
         return tuple(p.zero_start() for p in self._parts)
 
-    def __call__(self, theta, beta, v0=None, *, start: tuple | None = None):
+    def _each(self, start, counts):
+        n = len(self._parts)
+        return zip(self._parts, (None,) * n if start is None else start,
+                   (None,) * n if counts is None else counts, strict=True)
+
+    def __call__(self, theta, beta, v0=None, *, start: tuple | None = None, counts: tuple | None = None):
         if v0 is not None:
             raise InputError("v0 warm starts a single task; pass start= for several")
-        starts = (None,) * len(self._parts) if start is None else start
-        return sum(p(theta, beta, start=s)[0] for p, s in zip(self._parts, starts, strict=True)), None
+        return sum(p(theta, beta, start=s, counts=c)[0] for p, s, c in self._each(start, counts)), None
 
-    def start_at(self, theta, beta, start: tuple | None = None) -> tuple:
-        starts = (None,) * len(self._parts) if start is None else start
-        return tuple(p.start_at(theta, beta, s) for p, s in zip(self._parts, starts, strict=True))
+    def start_at(self, theta, beta, start: tuple | None = None, counts: tuple | None = None) -> tuple:
+        return tuple(p.start_at(theta, beta, s, c) for p, s, c in self._each(start, counts))
 
 
 def as_tasks(mdp, trajs) -> list[tuple[TabularMDP, Trajectories]]:
@@ -259,5 +266,6 @@ def tasks_log_likelihood(mdp, trajs, *, tol: float = 1e-10, max_iter: int = 200_
     """The log-likelihood of ``trajs`` on ``mdp`` (:class:`LogLikelihood`), or, given lists of
     MDPs and trajectories (one per task, see :func:`as_tasks`), their sum (:class:`TaskSum`)."""
     tasks = as_tasks(mdp, trajs)
-    parts = [make_log_likelihood(m, pair_counts(m, t), tol=tol, max_iter=max_iter, model=model) for m, t in tasks]
+    parts = [make_log_likelihood(m, pair_counts(m, t), tol=tol, max_iter=max_iter, model=model)
+             for m, t in tasks]
     return parts[0] if isinstance(mdp, TabularMDP) else TaskSum(parts)

@@ -22,14 +22,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InputError
+from ..jax_cache import JAX_CACHE_ENV, enable_jax_cache  # noqa: F401  (JAX_CACHE_ENV: public here too)
 
 if TYPE_CHECKING:
     from .engine import TaskSpec
 
 #: Environment variable read by the engine to inject faults (tests only); see :func:`_faults`.
 FAULTS_ENV = "EXPERTISE_IRL_FAULTS"
-#: Environment variable naming the directory of JAX's persistent compilation cache (or ``off``).
-JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
 #: Attempts the local pool gives a task whose worker process died before it gives up.
 LOCAL_ATTEMPTS = 3
 #: Dask ``retries`` for every task.
@@ -50,37 +49,6 @@ def _faults() -> list[tuple[str, str]]:
         kind, _, arg = item.partition(":")
         out.append((kind, arg))
     return out
-
-
-_JAX_CACHE_READY = False
-
-
-def _jax_cache() -> None:
-    """Let worker processes share compiled solver kernels through JAX's persistent cache.
-
-    Every worker would otherwise compile the same kernels again (seconds per map and batch
-    shape). ``EXPERTISE_IRL_JAX_CACHE`` names the directory (default
-    ``~/.cache/expertise-irl/jax``); ``off`` disables it.
-    """
-    global _JAX_CACHE_READY
-    if _JAX_CACHE_READY:
-        return
-    _JAX_CACHE_READY = True
-    where = os.environ.get(JAX_CACHE_ENV, "")
-    if where.lower() == "off":
-        return
-    if not where:
-        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        where = os.path.join(base, "expertise-irl", "jax")
-    try:
-        os.makedirs(where, exist_ok=True)
-    except OSError:
-        return
-    import jax
-
-    jax.config.update("jax_compilation_cache_dir", where)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def _kill_self() -> None:
@@ -109,7 +77,7 @@ def execute_task(study_name: str, config: dict[str, Any], seed: int, key: str,
             if target == key and not os.path.exists(marker):
                 Path(marker).touch()
                 os._exit(17)
-    _jax_cache()
+    enable_jax_cache()
     study = get_study(study_name)
     cfg = config_from_dict(study, config)
     t0 = time.perf_counter()

@@ -29,7 +29,8 @@ from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, DEFAULT_PRIOR, get_prior, log_prior_jax
 
-__all__ = ["BETA_PRIOR_MEAN", "BETA_PRIOR_SD", "MAPResult", "credible_intervals", "map_estimate", "paper_log_prior"]
+__all__ = ["BETA_PRIOR_MEAN", "BETA_PRIOR_SD", "MAPResult", "credible_intervals", "map_estimate",
+           "paper_log_prior"]
 
 #: Sec. VII-A prior: flat on the simplex for θ, Normal(5.005, 1.5) on [0.01, 10] for β.
 paper_log_prior = log_prior_jax("paper")

@@ -1,29 +1,35 @@
-"""NUTS on the continuous space, with every solve warm-started from the chain's last draw.
+"""NUTS on the continuous space: chains as separate programs in threads, Laplace starts.
 
 The sampler is NumPyro's NUTS (its tree building, step-size and mass-matrix adaptation),
 driven one iteration at a time through its functional interface
-(:func:`numpyro.infer.hmc.hmc` with a ``potential_fn_gen``), so that each iteration's
-potential can carry a :class:`~expertise_irl.likelihood.WarmStart`: the converged values
-and gradient adjoint at the chain's current point. Every leapfrog step of the next
-trajectory starts its forward and adjoint fixed points there instead of at zero. A solve's
-result does not depend on its start beyond the solver tolerance (``tol`` on V/β), so the
-target density is the same; only the number of sweeps changes. NumPyro's potential is a
-pure function of the position, so the start is the trajectory's origin (the last draw),
-not the previous leapfrog step.
+(:func:`numpyro.infer.hmc.hmc` with a ``potential_fn_gen``). What this module adds, each
+measured in ``benchmarks/nuts_speed.py``:
 
-The mass matrix is dense by default: θ's simplex coordinates and log β are strongly
-correlated in the posterior, and with a diagonal one the trees were twice as deep for
-half the effective samples (``benchmarks/nuts_speed.py``).
+- **One program per chain, chains in threads.** XLA runs them on separate cores, and no
+  chain waits for another's deeper tree or slower solve, as vectorised chains do.
+- **Laplace starts.** Each chain starts near a mode with the Laplace approximation there as
+  its initial mass matrix, so the first adaptation window does not run with the identity
+  (whose trees were five times deeper).
+- **Dense mass matrix** by default: θ's simplex coordinates and log β are correlated in
+  the posterior, and with a diagonal one the trees were twice as deep.
+- **The data as an input.** The counts are an argument of the compiled programs, so one
+  compile serves every data set on a map, and with JAX's persistent cache (the command line
+  turns it on) later runs do not compile again.
+- **Warm starts** (opt-in, ``warm_start=True``): each iteration's potential carries a
+  :class:`~expertise_irl.likelihood.WarmStart`, the converged values and gradient adjoint at
+  the chain's last draw, and every leapfrog step of the next trajectory starts its forward
+  and adjoint fixed points there. NumPyro's potential is a pure function of the position,
+  so the start is the trajectory's origin, not the previous leapfrog step. A solve's result
+  does not depend on its start beyond the tolerance, so the target is the same.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-
 import os
 import threading
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import jax
 import jax.flatten_util
@@ -68,8 +74,8 @@ def _laplace_start(value_and_grad, x: np.ndarray, rng: np.random.Generator, dens
     try:
         res = minimize(fun, x, jac=True, method="L-BFGS-B", options={"maxiter": 200})
         h = 1e-4 * np.maximum(1.0, np.abs(res.x))
-        hess = np.stack([(fun(res.x + h[i] * np.eye(d)[i])[1] - fun(res.x - h[i] * np.eye(d)[i])[1]) / (2 * h[i])
-                         for i in range(d)])
+        step = np.eye(d) * h
+        hess = np.stack([(fun(res.x + step[i])[1] - fun(res.x - step[i])[1]) / (2 * h[i]) for i in range(d)])
         hess = 0.5 * (hess + hess.T)
         if res.fun < 1e300 and np.all(np.isfinite(hess)) and np.linalg.eigvalsh(hess).min() > 0:
             cov = np.linalg.inv(hess)
@@ -147,16 +153,20 @@ def nuts_posterior(
     for θ and log β uniform on [1e-3, 1e2]; ``"paper"``: β ~ Normal(5.005, 1.5) truncated to
     [0.01, 10]); ``theta_prior``/``beta_prior`` (NumPyro distributions) replace either part.
     ``model`` is the observation model. ``mdp`` and ``trajs`` may be equal-length lists, one
-    per task of the same person: the log-likelihoods are summed. Each chain is its own compiled program; the chains
-    run in threads, as many at once as there are CPU cores, and the draws do not depend on how
-    many run at once. ``progress(done, total)`` counts iterations summed over the chains
-    (warm-up included), every :data:`CHUNK` iterations of a chain. ``laplace_init`` starts each
-    chain near a mode with the Laplace approximation as its mass matrix (see
-    :func:`_laplace_start`). ``dense_mass`` adapts a dense mass matrix (the default) instead of a
-    diagonal one; ``warm_start=False`` starts every solve from zero (slower, same target).
+    per task of the same person: the log-likelihoods are summed.
+
+    Each chain is its own compiled program; the chains run in threads, as many at once as
+    there are CPU cores, and the draws do not depend on how many run at once.
+    ``progress(done, total)`` counts iterations summed over the chains (warm-up included),
+    every :data:`CHUNK` iterations of a chain. ``laplace_init`` starts each chain near a mode
+    with the Laplace approximation as its mass matrix (see :func:`_laplace_start`);
+    ``dense_mass`` adapts a dense mass matrix (the default) instead of a diagonal one;
+    ``warm_start`` starts every solve at the chain's last draw instead of at zero (same target;
+    it was slower in ``benchmarks/nuts_speed.py``, so it is off by default).
     """
     import arviz as az
     import numpyro
+    import numpyro.distributions as dist
     from numpyro.infer.hmc import hmc
     from numpyro.infer.util import initialize_model
 
@@ -171,15 +181,28 @@ def nuts_posterior(
     theta_prior = named_theta if theta_prior is None else theta_prior
     beta_prior = named_beta if beta_prior is None else beta_prior
 
-    def numpyro_model(start):
+    # The counts are an argument of every compiled program, not a constant in it: programs for
+    # one map are then the same for every data set, and JAX's persistent cache (where enabled,
+    # as the command line does) serves them to later runs without compiling again.
+    # A log-uniform β is sampled as log β, uniform: NumPyro would otherwise map β's interval
+    # to the real line by a sigmoid in β, which squeezes experts' many orders of magnitude near
+    # the lower edge into a sliver of curvature that NUTS cannot step through (divergences).
+    log_scale = isinstance(beta_prior, dist.LogUniform)
+
+    def numpyro_model(start, counts):
         theta = numpyro.sample("theta", theta_prior)
-        beta = numpyro.sample("beta", beta_prior)
-        numpyro.factor("log_likelihood", f(theta, beta, start=start if warm_start else None)[0])
+        if log_scale:
+            log_beta = numpyro.sample("log_beta", dist.Uniform(jnp.log(beta_prior.low), jnp.log(beta_prior.high)))
+            beta = jnp.exp(log_beta)
+        else:
+            beta = numpyro.sample("beta", beta_prior)
+        ll = f(theta, beta, start=start if warm_start else None, counts=counts)[0]
+        numpyro.factor("log_likelihood", ll)
 
     key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
-    zero = f.zero_start()
+    zero, counts = f.zero_start(), f.counts
     init_params, potential_gen, postprocess_gen, _ = initialize_model(
-        jax.random.split(key_init, num_chains), numpyro_model, model_args=(zero,), dynamic_args=True)
+        jax.random.split(key_init, num_chains), numpyro_model, model_args=(zero, counts), dynamic_args=True)
     init_kernel, sample_kernel = hmc(potential_fn_gen=potential_gen, algo="NUTS")
     x_init = np.asarray(jax.vmap(lambda z: jax.flatten_util.ravel_pytree(z)[0])(init_params.z), np.float64)
     unravel = jax.flatten_util.ravel_pytree(jax.tree_util.tree_map(lambda a: a[0], init_params.z))[1]
@@ -187,32 +210,36 @@ def nuts_posterior(
     total = num_warmup + num_samples
     chunk = min(CHUNK, total)  # the last chunk may run past ``total``; those draws are dropped
 
-    def constrained(z, start):
-        c = postprocess_gen(start)(z)
-        return c["theta"], c["beta"]
+    def constrained(z, start, counts):
+        c = postprocess_gen(start, counts)(z)
+        return c["theta"], jnp.exp(c["log_beta"]) if log_scale else c["beta"]
 
-    def init_chain(x, inverse_mass, key):
+    def init_chain(x, inverse_mass, key, counts):
         state = init_kernel(unravel(x), num_warmup, inverse_mass_matrix=inverse_mass, dense_mass=dense_mass,
-                            model_args=(zero,), rng_key=key)
-        start = f.start_at(*constrained(state.z, zero)) if warm_start else zero
+                            model_args=(zero, counts), rng_key=key)
+        start = f.start_at(*constrained(state.z, zero, counts), counts=counts) if warm_start else zero
         return state, start
 
-    def run_chunk(carry):
+    def run_chunk(carry, counts):
         def body(c, _):
             state, start = c
-            state = sample_kernel(state, model_args=(start,))
-            theta, beta = constrained(state.z, start)
+            state = sample_kernel(state, model_args=(start, counts))
+            theta, beta = constrained(state.z, start, counts)
             if warm_start:
-                start = f.start_at(theta, beta, start)
+                start = f.start_at(theta, beta, start, counts=counts)
             return (state, start), (theta, beta, state.diverging, state.num_steps, state.accept_prob)
         return jax.lax.scan(body, carry, None, length=chunk)
 
-    potential = jax.jit(jax.value_and_grad(lambda x: potential_gen(zero)(unravel(x))))
+    value_and_grad = jax.jit(jax.value_and_grad(lambda x, counts: potential_gen(zero, counts)(unravel(x))))
     eye = np.eye(x_init.shape[1]) if dense_mass else np.ones(x_init.shape[1])
     # Compiled once, here, and shared: the chain threads only run compiled code.
-    potential(jnp.asarray(x_init[0]))
-    init_compiled = jax.jit(init_chain).lower(x_init[0], eye, keys[0]).compile()
-    chunk_compiled = jax.jit(run_chunk).lower(init_compiled(x_init[0], eye, keys[0])).compile()
+    value_and_grad(jnp.asarray(x_init[0]), counts)
+    init_compiled = jax.jit(init_chain).lower(x_init[0], eye, keys[0], counts).compile()
+    carry0 = init_compiled(x_init[0], eye, keys[0], counts)
+    chunk_compiled = jax.jit(run_chunk).lower(carry0, counts).compile()
+
+    def potential(x):
+        return value_and_grad(x, counts)
     done = np.zeros(num_chains, dtype=int)
     lock, stop = threading.Lock(), threading.Event()
 
@@ -220,10 +247,10 @@ def nuts_posterior(
         x, inverse_mass = x_init[c], eye
         if laplace_init:
             x, inverse_mass = _laplace_start(potential, x, np.random.default_rng([int(seed), c]), dense_mass)
-        carry = init_compiled(x, inverse_mass, keys[c])
+        carry = init_compiled(x, inverse_mass, keys[c], counts)
         parts = []
         while len(parts) * chunk < total and not stop.is_set():
-            carry, out = chunk_compiled(carry)
+            carry, out = chunk_compiled(carry, counts)
             parts.append(jax.device_get(out))
             with lock:
                 done[c] = min(len(parts) * chunk, total)
@@ -245,9 +272,12 @@ def nuts_posterior(
         np.stack([np.concatenate([part[k] for part in parts])[num_warmup:total] for parts in per_chain])
         for k in range(5))
 
-    density = jax.jit(jax.vmap(lambda t, b: f(t, b)[0] + theta_prior.log_prob(t) + beta_prior.log_prob(b)))
+    def log_posterior(t, b, n):
+        return f(t, b, counts=n)[0] + theta_prior.log_prob(t) + beta_prior.log_prob(b)
+
+    density = jax.jit(jax.vmap(log_posterior, in_axes=(0, 0, None)))
     C_, D_ = be.shape
-    log_density = np.asarray(density(th.reshape(C_ * D_, -1), be.reshape(-1))).reshape(C_, D_)
+    log_density = np.asarray(density(th.reshape(C_ * D_, -1), be.reshape(-1), counts)).reshape(C_, D_)
     idata = az.from_dict(
         posterior={"theta": th, "beta": be},
         sample_stats={"diverging": div, "n_steps": steps, "acceptance_rate": acc, "lp": log_density},

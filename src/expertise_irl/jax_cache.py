@@ -1,0 +1,40 @@
+"""JAX's persistent compilation cache, shared by the command line and the engine's workers.
+
+Compiling the solver, likelihood and sampler programs takes seconds per map; JAX can keep the
+compiled programs on disk and serve them to later processes. ``EXPERTISE_IRL_JAX_CACHE``
+names the directory (default ``$XDG_CACHE_HOME/expertise-irl/jax``, else
+``~/.cache/expertise-irl/jax``); ``off`` disables it. Programs are keyed by JAX on their
+computation, options and JAX version, so a stale entry is never used.
+"""
+
+from __future__ import annotations
+
+import os
+
+JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
+
+_READY = False
+
+
+def enable_jax_cache() -> None:
+    """Turn the persistent cache on for this process (once; a directory that cannot be
+    created leaves it off)."""
+    global _READY
+    if _READY:
+        return
+    _READY = True
+    where = os.environ.get(JAX_CACHE_ENV, "")
+    if where.lower() == "off":
+        return
+    if not where:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        where = os.path.join(base, "expertise-irl", "jax")
+    try:
+        os.makedirs(where, exist_ok=True)
+    except OSError:
+        return
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", where)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
