@@ -129,7 +129,8 @@ def main() -> None:
                  **measure(c, CONFIGS[c], mdp, trajs, model)}
             rows.append(r)
             print(f"{d:8s} {c:20s} {r['wall_s']:7.1f} {r['cpu_s']:7.1f} {r['min_ess']:8.0f} "
-                  f"{r['ess_per_s']:7.1f} {r['tree_size']:6.1f} {r['divergences']:4d} {r['beta_mean']:8.4f} {r['max_r_hat']:6.3f}",
+                  f"{r['ess_per_s']:7.1f} {r['tree_size']:6.1f} {r['divergences']:4d} {r['beta_mean']:8.4f} "
+                  f"{r['max_r_hat']:6.3f}",
                   flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps({"machine": info, "rows": rows}, indent=1))

@@ -192,7 +192,8 @@ def nuts_posterior(
     def numpyro_model(start, counts):
         theta = numpyro.sample("theta", theta_prior)
         if log_scale:
-            log_beta = numpyro.sample("log_beta", dist.Uniform(jnp.log(beta_prior.low), jnp.log(beta_prior.high)))
+            log_range = dist.Uniform(jnp.log(beta_prior.low), jnp.log(beta_prior.high))
+            log_beta = numpyro.sample("log_beta", log_range)
             beta = jnp.exp(log_beta)
         else:
             beta = numpyro.sample("beta", beta_prior)
