@@ -37,13 +37,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _machine import machine_info
-from online import cpu_flags
+from _machine import cpu_flags, machine_info
 
 from expertise_irl.demos import simulate
 from expertise_irl.inference import sbc
 from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.inference.priors import DEFAULT_PRIOR, get_prior, numpyro_priors
+from expertise_irl.jax_cache import enable_jax_cache
 from expertise_irl.models import MODELS
 from expertise_irl.worlds.zones import load_bundled
 
@@ -263,6 +263,7 @@ def plot(model: str, s: dict, args: argparse.Namespace, path: Path) -> None:
 
 
 def main(argv=None) -> None:
+    enable_jax_cache()  # one compile per model and map, not per person
     args = parse_args(argv)
     info = machine_info()
     info.setdefault("cpu_flags", cpu_flags())
