@@ -131,3 +131,8 @@ def test_counts_passed_in_replace_the_ones_built_in(corridor, corridor_demos):
     grad = jax.grad(lambda t, n: f(t, 0.8, counts=n)[0])
     np.testing.assert_allclose(np.asarray(grad(theta, g.counts)),
                                np.asarray(jax.grad(lambda t: g(t, 0.8)[0])(theta)), rtol=1e-9)
+
+
+def test_a_target_acceptance_outside_0_1_is_refused(corridor, corridor_demos):
+    with pytest.raises(InputError, match=r"target_accept must be in \(0, 1\), got 1.2"):
+        nuts_posterior(corridor, corridor_demos, num_warmup=5, num_samples=5, target_accept=1.2)
