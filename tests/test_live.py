@@ -356,3 +356,134 @@ def test_next_start_command(tmp_path):
     assert "expected information gain" in a.stdout and "8 of" in a.stdout
     assert_input_error(invoke("next-start", "crossroads"), "--demos")
     assert_input_error(invoke(*args, "--target", "theta"), "--target")
+
+
+# --------------------------------------------------------------------- floor plans
+PLAN = """\
+S.>>G
+.x#..
+.....
+"""
+#: A path from S to the goal with three turns (down, then right into the restricted cell, ...).
+PLAN_MOVES = ("down", "right", "up", "right", "right", "right")
+PLAN_AXES = ("v", "h", "v", "h", "h", "h")  # the heading each move leaves behind
+
+
+@pytest.fixture
+def plan_path(tmp_path):
+    path = tmp_path / "plan.txt"
+    path.write_text(PLAN)
+    path.with_suffix(".toml").write_text('world = "warehouse"\ncell_size = 0.5\n')
+    return path
+
+
+@pytest.fixture(scope="module")
+def hyp3():
+    return HypothesisSet(theta_grid((0.0, 1.0), 3), BETA_PRESETS["paper-sim"])
+
+
+def demo_rows(path) -> list[list[str]]:
+    return [line.split(",") for line in path.read_text().splitlines()]
+
+
+def test_floor_plan_session_records_headings_and_resumes(tmp_path, plan_path, hyp3):
+    from expertise_irl.worlds.maps import resolve_world
+    from expertise_irl.worlds.warehouse_render import CELL_COLORS, GOAL_FILL, ROAD_COLOR
+
+    plan = resolve_world(plan_path)
+    out = tmp_path / "rec"
+    session, client = make(plan, hyp3, out)
+    mdp = session.mdp
+    assert mdp.state_heading is not None
+    s0 = session.position
+    letter0 = "hv"[int(mdp.state_heading[s0])]
+    states = [s0]
+    with client.websocket_connect(WS) as ws:
+        init = ws.receive_json()
+        assert init["map"]["world"] == "warehouse" and init["map"]["rows"] == PLAN.splitlines()
+        assert init["colors"]["zones"]["x"] == CELL_COLORS["x"] and init["colors"]["arrow"] == ROAD_COLOR
+        assert init["colors"]["goal"] == GOAL_FILL and init["actions"] == list(ACTION_NAMES)
+        assert init["state"]["position"] == [0, 0] and init["state"]["heading"] == letter0
+        assert "heading" in init["state"]["start"]["why"]
+        for name, axis in zip(PLAN_MOVES[:-1], PLAN_AXES, strict=False):  # stop short of the goal
+            r = move(ws, name)
+            states.append(int(mdp.next_state[states[-1], ACTION_NAMES.index(name)]))
+            assert r["event"] == "moved" and r["heading"] == axis
+            assert r["position"] == mdp.state_xy[states[-1]].tolist()
+    demos = out / "demos.csv"
+    rows = demo_rows(demos)
+    assert rows[0] == ["episode", "step", "x", "y", "heading"]
+    assert [r[4] for r in rows[1:]] == [letter0, *PLAN_AXES[:-1]]
+    assert [[int(v) for v in r[2:4]] for r in rows[1:]] == mdp.state_xy[states].tolist()
+    trajs = read_demos_csv(demos, mdp)  # the heading column gives back the very states moved through
+    assert trajs.state.tolist() == states[:-1]
+    assert [ACTION_NAMES[a] for a in trajs.action] == list(PLAN_MOVES[:-1])
+    expected = session.estimator.estimate
+    del session, client
+
+    again, client = make(plan, hyp3, out)  # resumed mid-episode, on the recorded start heading
+    assert again.position == states[-1] and again.start.how == "resumed"
+    assert again.estimator.estimate.beta_hat == pytest.approx(expected.beta_hat, abs=1e-12)
+    with client.websocket_connect(WS) as ws:
+        state = ws.receive_json()["state"]
+        assert state["episode"] == 0 and state["step"] == len(PLAN_MOVES) - 1
+        r = move(ws, PLAN_MOVES[-1])
+        assert r["event"] == "episode_done" and r["episode"] == 1 and r["step"] == 0
+        doc = json.loads((out / "result.json").read_text())
+        assert doc["data"]["episodes"] == 1 and doc["data"]["actions"] == len(PLAN_MOVES)
+        assert doc["feature_names"] == list(mdp.feature_names)
+        assert doc["beta_hat"] == pytest.approx(r["estimate"]["beta_hat"])
+    del again, client
+
+    third, client = make(plan, hyp3, out)  # resumed between episodes: the next one is episode 1
+    s = third.position
+    a = next(a for a in range(4) if mdp.next_state[s, a] >= 0)
+    with client.websocket_connect(WS) as ws:
+        assert ws.receive_json()["state"]["episode"] == 1
+        r = move(ws, ACTION_NAMES[a])
+        assert r["episode"] == 1 and r["step"] == 1 and r["heading"] == "hv"[int(mdp.state_heading[
+            mdp.next_state[s, a]])]
+    rows = demo_rows(demos)
+    assert [r[:2] for r in rows[-2:]] == [["1", "0"], ["1", "1"]]
+    assert rows[-2][4] == "hv"[int(mdp.state_heading[s])]
+    trajs = read_demos_csv(demos, mdp)
+    assert trajs.n_episodes == 2 and trajs.state.tolist() == [*states, s]
+
+    result = tmp_path / "infer.json"
+    ok(invoke("infer", plan_path, "--demos", demos, "--out", result, "--thetas", "0,1"))
+    assert json.loads(result.read_text())["data"]["actions"] == len(PLAN_MOVES) + 1
+
+
+def test_floor_plan_directory_without_the_heading_column_is_refused(tmp_path, plan_path, hyp3):
+    from expertise_irl.errors import InputError
+    from expertise_irl.worlds.maps import resolve_world
+
+    out = tmp_path / "rec"
+    out.mkdir()
+    (out / "demos.csv").write_text("episode,step,x,y\n0,0,0,0\n0,1,1,0\n")  # readable, not appendable
+    with pytest.raises(InputError, match="appends rows episode,step,x,y,heading"):
+        open_session(resolve_world(plan_path), hyp3, out)
+
+
+def test_live_and_next_start_commands_on_a_floor_plan(tmp_path, plan_path, monkeypatch):
+    import expertise_irl.live.server as server
+    from expertise_irl.results import map_digest
+    from expertise_irl.worlds.maps import resolve_world
+
+    monkeypatch.setattr(server, "serve", lambda session, sock, on_ready: (
+        on_ready(server.url_of(sock)), sock.close()))
+    out = tmp_path / "rec"
+    r = invoke("live", plan_path, "--thetas", "0,1", "--out", out, "--port", 0)
+    ok(r)
+    assert "live page: http://127.0.0.1:" in r.stdout and "plan.txt" in r.stdout
+    doc = json.loads((out / "result.json").read_text())
+    assert doc["settings"]["mdp_digest"] == map_digest(resolve_world(plan_path))
+    demos = out / "demos.csv"
+    demos.write_text("episode,step,x,y,heading\n0,0,0,0,h\n0,1,0,1,v\n")
+    r = invoke("live", plan_path, "--thetas", "0,1", "--out", out, "--port", 0)
+    ok(r)
+    assert "resumed 1 episode(s), 1 actions" in r.stderr + r.stdout
+    r = invoke("next-start", plan_path, "--demos", demos, "--thetas", "0,1", "--samples", 8, "--seed", 1)
+    ok(r)
+    assert r.stdout.startswith("next start: ") and "expected information gain" in r.stdout
+    assert_input_error(invoke("live", tmp_path / "nosuch.txt", "--port", 0), "nosuch.txt")

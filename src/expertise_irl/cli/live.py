@@ -25,7 +25,9 @@ def _hypotheses(thetas: str, betas: str, n_features: int):
 @app.command()
 @handles_errors
 def live(
-    map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
+    map_spec: Annotated[str, typer.Argument(metavar="MAP", help=(
+        "Map file or bundled map name: a zone map, or a warehouse floor plan (a TOML beside it "
+        "says world = \"warehouse\"; demos.csv then has the heading column)."))],
     thetas: Annotated[str, typer.Option(help=THETAS_HELP)] = "paper-real",
     betas: Annotated[str, typer.Option(help=BETAS_HELP)] = "paper-sim",
     out_dir: Annotated[Path, typer.Option(
@@ -47,9 +49,9 @@ def live(
     from ..live.server import bind, is_loopback, serve
     from ..live.session import check_out_dir, open_session
     from ..results import map_digest
-    from ..worlds.zones import resolve_map
+    from ..worlds.maps import resolve_world
 
-    zone_map = resolve_map(map_spec)
+    zone_map = resolve_world(map_spec)
     mdp = zone_map.to_mdp()
     hyp = _hypotheses(thetas, betas, mdp.n_features)
     settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
@@ -94,9 +96,9 @@ def live(
 @handles_errors
 def next_start_cmd(
     map_spec: Annotated[str | None, typer.Argument(
-        metavar="MAP", help="Map file or bundled map name.")] = None,
+        metavar="MAP", help="Map file (zone map or warehouse floor plan) or bundled map name.")] = None,
     demos: Annotated[Path | None, typer.Option(
-        help="Demonstrations so far (CSV, episode,step,x,y or episode,step,state,action).")] = None,
+        help="Demonstrations so far (CSV, episode,step,x,y[,heading] or episode,step,state,action).")] = None,
     mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
     thetas: Annotated[str, typer.Option(help=THETAS_HELP)] = "paper-real",
     betas: Annotated[str, typer.Option(help=BETAS_HELP)] = "paper-sim",

@@ -4,7 +4,8 @@ Everything the page shows and does goes through :meth:`LiveSession.handle`, whic
 takes one decoded client message and returns the replies; the web server only
 moves JSON between the socket and this class. Nothing a client sends names a
 file: the session writes only ``DIR/demos.csv`` (every accepted action appended,
-flushed and synced as it happens, grid format ``episode,step,x,y``) and
+flushed and synced as it happens, grid format ``episode,step,x,y``, with the ``heading``
+column on a warehouse floor plan) and
 ``DIR/result.json`` (the discrete-set result, written when the session opens and
 rewritten atomically after every episode). Opening a session on a DIR that already
 holds ``demos.csv`` replays it, so the belief, the history and an episode cut short
@@ -25,7 +26,9 @@ from ..errors import InputError
 from ..hypotheses import HypothesisSet
 from ..inference.active import expected_information_gain
 from ..inference.online import OnlineEstimator
-from ..worlds.zones import ACTION_NAMES, ZoneMap
+from ..worlds.maps import Map
+from ..worlds.warehouse import HEADING_LETTERS, WarehouseMap
+from ..worlds.zones import ACTION_NAMES
 
 DEMOS_NAME = "demos.csv"
 RESULT_NAME = "result.json"
@@ -54,7 +57,7 @@ class StartChoice:
 class LiveSession:
     """State of one session. Build with :func:`open_session`."""
 
-    zone_map: ZoneMap
+    zone_map: Map  # a zone map or a warehouse floor plan
     estimator: OnlineEstimator
     out_dir: Path
     settings: dict[str, Any]
@@ -83,6 +86,11 @@ class LiveSession:
 
     def _xy(self, s: int) -> list[int]:
         return [int(v) for v in self.mdp.state_xy[s]]
+
+    def _heading(self, s: int) -> str | None:
+        """``h`` or ``v``, the heading of state ``s`` in a heading world, else None."""
+        h = self.mdp.state_heading
+        return None if h is None else HEADING_LETTERS[int(h[s])]
 
     # ---------------------------------------------------------------- protocol
     def handle(self, msg: Any) -> list[dict[str, Any]]:
@@ -134,15 +142,17 @@ class LiveSession:
 
     # -------------------------------------------------------------- recording
     def _append_rows(self, episode: int, step: int, s: int, nxt: int, first: bool) -> None:
-        rows = []
-        if first:
-            rows.append(f"{episode},{step},{self._xy(s)[0]},{self._xy(s)[1]}\n")
-        x, y = self._xy(nxt)
-        rows.append(f"{episode},{step + 1},{x},{y}\n")
+        def row(t: int, state: int) -> str:
+            x, y = self._xy(state)
+            h = self._heading(state)  # the heading column, in a heading world
+            return f"{episode},{t},{x},{y}" + ("" if h is None else f",{h}") + "\n"
+
+        rows = [row(step, s)] if first else []
+        rows.append(row(step + 1, nxt))
         new = not self.demos_path.exists() or self.demos_path.stat().st_size == 0
         with open(self.demos_path, "a", encoding="utf-8", newline="") as fh:
             if new:
-                fh.write("episode,step,x,y\n")
+                fh.write(",".join(demos_header(self.mdp)) + "\n")
             fh.write("".join(rows))
             fh.flush()
             os.fsync(fh.fileno())
@@ -195,19 +205,29 @@ class LiveSession:
 
     def _cell(self, s: int) -> str:
         x, y = self._xy(s)
-        return f"cell (x={x}, y={y})"
+        h = self._heading(s)
+        return f"cell (x={x}, y={y})" + ("" if h is None else
+                                         f" heading {'horizontal' if h == 'h' else 'vertical'}")
 
     # ---------------------------------------------------------------- messages
     def static_message(self) -> dict[str, Any]:
         """The map and its colours (sent once, when a page connects)."""
         from ..worlds.render import ARROW_COLOR, GOAL_COLOR, GRID_COLOR, PATH_COLORS, ZONE_COLORS
 
+        floor_plan = isinstance(self.zone_map, WarehouseMap)
+        if floor_plan:  # the colours of the floor-plan figures (Figs. 10–11)
+            from ..worlds.warehouse_render import CELL_COLORS, GOAL_FILL, ROAD_COLOR
+
+            cells, goal, arrow = CELL_COLORS, GOAL_FILL, ROAD_COLOR
+        else:
+            cells, goal, arrow = ZONE_COLORS, GOAL_COLOR, ARROW_COLOR
         return {
             "type": "init",
             "map": {"name": self.zone_map.name, "width": self.zone_map.width,
                     "height": self.zone_map.height,
-                    "rows": ["".join(r) for r in self.zone_map.grid.tolist()]},
-            "colors": {"zones": ZONE_COLORS, "goal": GOAL_COLOR, "arrow": ARROW_COLOR,
+                    "rows": ["".join(r) for r in self.zone_map.grid.tolist()],
+                    "world": "warehouse" if floor_plan else "zones"},
+            "colors": {"zones": cells, "goal": goal, "arrow": arrow,
                        "grid": GRID_COLOR, "path": PATH_COLORS[0], "agent": PATH_COLORS[1]},
             "feature_names": list(self.mdp.feature_names),
             "n_hypotheses": len(self.estimator.hypotheses),
@@ -231,6 +251,7 @@ class LiveSession:
             "event": event,
             "message": message,
             "position": self._xy(self.position),
+            "heading": self._heading(self.position),
             "path": path,
             "episode": episode,
             "step": step,
@@ -265,7 +286,7 @@ def validate_message(msg: Any) -> str | None:
     return None
 
 
-def open_session(zone_map: ZoneMap, hypotheses: HypothesisSet, out_dir: str | Path, *,
+def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, *,
                  settings: dict[str, Any] | None = None, seed: int = 0,
                  progress: Callable[[int, int], None] | None = None,
                  n_samples: int = 48) -> LiveSession:
@@ -298,7 +319,14 @@ def open_session(zone_map: ZoneMap, hypotheses: HypothesisSet, out_dir: str | Pa
     return session
 
 
-def check_out_dir(zone_map: ZoneMap, out_dir: str | Path, settings: dict[str, Any] | None = None):
+def demos_header(mdp) -> tuple[str, ...]:
+    """Columns of the session's ``demos.csv``: the grid form, plus ``heading`` in a heading world."""
+    from ..demos import GRID_COLUMNS, HEADING_COLUMN
+
+    return GRID_COLUMNS + ((HEADING_COLUMN,) if mdp.state_heading is not None else ())
+
+
+def check_out_dir(zone_map: Map, out_dir: str | Path, settings: dict[str, Any] | None = None):
     """Check that ``out_dir`` can hold (or resume) a recording on ``zone_map`` before any work is
     done; returns the demonstrations already recorded there (or None)."""
     from ..demos import read_demos_csv
@@ -313,7 +341,20 @@ def check_out_dir(zone_map: ZoneMap, out_dir: str | Path, settings: dict[str, An
         raise InputError(f"{zone_map.name}: the live page needs a grid map with the four moves")
     _check_same_map(out_dir / RESULT_NAME, settings or {})
     demos = out_dir / DEMOS_NAME
-    return read_demos_csv(demos, mdp) if demos.is_file() and demos.stat().st_size > 0 else None
+    if not (demos.is_file() and demos.stat().st_size > 0):
+        return None
+    trajs = read_demos_csv(demos, mdp)
+    _check_appendable(demos, demos_header(mdp))
+    return trajs
+
+
+def _check_appendable(demos: Path, header: tuple[str, ...]) -> None:
+    """Refuse a ``demos.csv`` whose columns are not those the session appends."""
+    with open(demos, encoding="utf-8-sig", newline="") as fh:
+        got = tuple(c.strip().lower() for c in fh.readline().strip().split(","))
+    if got != header:
+        raise InputError(f"{demos}: columns {','.join(got)}, but the live page appends rows "
+                         f"{','.join(header)} on this map; choose another --out")
 
 
 def _check_same_map(result: Path, settings: dict[str, Any]) -> None:

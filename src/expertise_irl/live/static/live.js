@@ -107,6 +107,12 @@
     const a = state.position;
     g.fillStyle = c.agent; g.strokeStyle = "#fff"; g.lineWidth = 2;
     g.beginPath(); g.arc(px(a), py(a), cs * 0.34, 0, 2 * Math.PI); g.fill(); g.stroke();
+    if (state.heading) {  // a heading world: a white bar along the current axis
+      const r = cs * 0.22, hz = state.heading === "h";
+      g.strokeStyle = "#fff"; g.lineWidth = Math.max(2, cs * 0.09); g.lineCap = "round";
+      g.beginPath(); g.moveTo(px(a) - (hz ? r : 0), py(a) - (hz ? 0 : r));
+      g.lineTo(px(a) + (hz ? r : 0), py(a) + (hz ? 0 : r)); g.stroke();
+    }
   }
 
   // --------------------------------------------------------------- panels
@@ -185,6 +191,7 @@
       ["at", "(" + s.position[0] + ", " + s.position[1] + ")"],
       ["actions recorded", s.actions], ["episodes done", s.episodes_done],
     ];
+    if (s.heading) parts.splice(4, 0, ["heading", s.heading === "h" ? "horizontal" : "vertical"]);
     for (const [k, v] of parts) {
       const span = document.createElement("span");
       span.id = { map: "map-name", "actions recorded": "actions", "episodes done": "episodes-done",
@@ -194,6 +201,7 @@
       $("status").appendChild(span);
     }
     $("active").checked = s.mode === "active";
+    for (const dot of document.querySelectorAll(".goal-dot")) dot.style.background = info.colors.goal;
     $("start").textContent = s.start ? s.start.why : "";
     drawMap();
     drawHistory();
