@@ -18,6 +18,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -45,11 +46,9 @@ KEYS = {"up": ("ArrowUp", "w"), "down": ("ArrowDown", "s"), "left": ("ArrowLeft"
 SERVER_START_S = 180  # the solve compiles JAX kernels on first use; generous for a loaded CI machine
 
 
-@pytest.fixture
-def server(tmp_path):
-    map_path = tmp_path / "room.txt"
-    map_path.write_text(MAP)
-    out = tmp_path / "rec"
+@contextmanager
+def serving(map_path, out):
+    """``expertise-irl live MAP --out OUT`` on a free port; yields its URL, stops it with Ctrl-C."""
     exe = Path(sys.executable).with_name("expertise-irl")
     proc = subprocess.Popen(
         [str(exe), "live", str(map_path), "--thetas", "0,1", "--out", str(out), "--port", "0"],
@@ -67,7 +66,7 @@ def server(tmp_path):
                 url = m.group(1)
                 break
         assert url, f"server did not start: {proc.stderr.read() if proc.poll() is not None else ''}"
-        yield url, map_path, out
+        yield url
     finally:
         proc.send_signal(signal.SIGINT)
         try:
@@ -77,6 +76,15 @@ def server(tmp_path):
             proc.wait()
     assert proc.returncode == 0, "Ctrl-C should stop the server cleanly"
     assert "stopped:" in proc.stdout.read()
+
+
+@pytest.fixture
+def server(tmp_path):
+    map_path = tmp_path / "room.txt"
+    map_path.write_text(MAP)
+    out = tmp_path / "rec"
+    with serving(map_path, out) as url:
+        yield url, map_path, out
 
 
 def raw_get(url: str, path: str) -> tuple[int, bytes]:
@@ -149,3 +157,51 @@ def test_drive_an_episode_in_chromium(server, tmp_path):
         assert status in (400, 404), (path, status)
         assert b"import" not in body and b"root:" not in body
     assert raw_get(url, "/static/live.js")[0] == 200
+
+
+PLAN = """\
+S...xx.....
+>>>>>>>>>v.
+....##...v.
+.xx.##...v.
+.xx......G.
+"""
+PLAN_MOVES = ["down"] + ["right"] * 9 + ["down"] * 3  # along the road, turning twice
+
+
+def test_drive_a_floor_plan_in_chromium(tmp_path):
+    """A warehouse floor plan: drawn, driven with turns, recorded with the heading column."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
+    map_path = tmp_path / "plan.txt"
+    map_path.write_text(PLAN)
+    map_path.with_suffix(".toml").write_text('world = "warehouse"\ncell_size = 0.5\n')
+    out = tmp_path / "rec"
+    shot = tmp_path / "live-plan.png"
+    with serving(map_path, out) as url, sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--headless", "--no-sandbox"])
+        try:
+            page = browser.new_page(viewport={"width": 1180, "height": 880})
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url)
+            expect = sync_api.expect
+            expect(page.locator("#actions")).to_have_attribute("data-value", "0", timeout=30_000)
+            assert page.locator("#theta-bars .track").count() == 3  # length, restricted, road
+            start_heading = page.locator("#heading").get_attribute("data-value")
+            for i, name in enumerate(PLAN_MOVES):
+                page.keyboard.press(KEYS[name][i % 2])
+                expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+                if i + 1 < len(PLAN_MOVES):
+                    axis = "vertical" if name == "down" else "horizontal"
+                    expect(page.locator("#heading")).to_have_attribute("data-value", axis)
+                if i == 5:
+                    page.screenshot(path=str(shot))
+            expect(page.locator("#episodes-done")).to_have_attribute("data-value", "1")
+            assert not errors, errors
+        finally:
+            browser.close()
+    assert shot.stat().st_size > 10_000
+    rows = [line.split(",") for line in (out / "demos.csv").read_text().splitlines()]
+    assert rows[0] == ["episode", "step", "x", "y", "heading"]
+    first = {"horizontal": "h", "vertical": "v"}[start_heading]
+    assert [r[4] for r in rows[1:]] == [first] + ["v" if m == "down" else "h" for m in PLAN_MOVES]
