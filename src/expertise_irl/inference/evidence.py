@@ -45,16 +45,21 @@ class ModelFit:
     @property
     def strength(self) -> str:
         """Kass & Raftery's reading of the evidence against this model relative to the best."""
-        x = 2 * abs(self.log_bayes_factor)
-        if self.log_bayes_factor == 0:
-            return "best"
-        if x < 2:
-            return "barely worse"
-        if x < 6:
-            return "positively worse"
-        if x < 10:
-            return "strongly worse"
-        return "very strongly worse"
+        return bayes_factor_reading(self.log_bayes_factor)
+
+
+def bayes_factor_reading(log_bayes_factor: float) -> str:
+    """Kass & Raftery's reading of a log Bayes factor against the best model (≤ 0)."""
+    x = 2 * abs(log_bayes_factor)
+    if log_bayes_factor == 0:
+        return "best"
+    if x < 2:
+        return "barely worse"
+    if x < 6:
+        return "positively worse"
+    if x < 10:
+        return "strongly worse"
+    return "very strongly worse"
 
 
 @dataclass(frozen=True)
