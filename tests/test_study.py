@@ -318,3 +318,149 @@ def test_map_and_nuts_studies_fit_each_participant_on_all_their_tasks(study_dir)
     rows = read_csv(out / "study.csv")
     # NUTS's group probabilities are fractions of its draws: they sum to 1.
     assert sum(float(rows[2][f"p_{g}"]) for g in ("high", "medium", "low")) == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------- model evidence
+MODELS = ("maxent", "maxent-relative")
+
+
+def low_path(plan):
+    """The fixture's P2/P3a path (down the left edge, then right along the bottom) as pairs."""
+    idx = plan.state_index()
+    low = [(0, 0), (0, 1), (0, 2), (1, 2), (2, 2), (3, 2), (4, 2)]
+    s = [int(idx[1 if i and low[i][0] == low[i - 1][0] else 0, r, c]) for i, (c, r) in enumerate(low[:-1])]
+    s[0] = int(idx[1, 0, 0])
+    return s, [DOWN, DOWN, RIGHT, RIGHT, RIGHT, RIGHT]
+
+
+def add_three_episode_participant(study_dir) -> None:
+    """P4 on floor plan a: along the road, along the bottom, along the road again."""
+    plan = parse_floor_plan(PLAN)
+    idx = plan.state_index()
+    top_s, top_a = [int(idx[0, 0, c]) for c in range(5)] + [int(idx[1, 1, 4])], [RIGHT] * 4 + [DOWN, DOWN]
+    low_s, low_a = low_path(plan)
+    s, a = top_s + low_s + top_s, top_a + low_a + top_a
+    ep = np.repeat([0, 1, 2], 6)
+    steps = np.tile(np.arange(6), 3)
+    write_demos_csv(study_dir / "p4.csv", Trajectories(ep, steps, np.array(s), np.array(a)), plan.to_mdp(),
+                    fmt="grid")
+    with open(study_dir / "manifest.csv", "a", encoding="utf-8") as fh:
+        fh.write("P4,a.txt,,p4.csv\n")
+
+
+def manifest_trajectories(study_dir):
+    """``(participant, map name, trajectories)`` of every manifest row, read without the study."""
+    from expertise_irl.demos import read_demos_csv
+    from expertise_irl.recordings import discretise_recording
+
+    out = []
+    for r in read_csv(study_dir / "manifest.csv"):
+        plan = parse_floor_plan((study_dir / r["map"]).read_text(), name=r["map"])
+        if r["recording"]:
+            tr = discretise_recording(study_dir / r["recording"], plan).trajectories
+        else:
+            tr = read_demos_csv(study_dir / r["demos"], plan.to_mdp())
+        out.append((r["participant"], r["map"], tr))
+    return out
+
+
+def test_study_models_evidence_is_the_brute_force_sum_over_tasks_and_resumes(study_dir):
+    from scipy.special import logsumexp
+
+    from expertise_irl.hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from expertise_irl.inference.belief import DiscreteBelief
+
+    add_three_episode_participant(study_dir)
+    out = study_dir / "out_models"
+    args = ("study", study_dir / "manifest.csv", "--out", out, "--models", ",".join(MODELS), "--workers", "1")
+    res = invoke(*args)
+    assert res.exit_code == 0, res.output
+    # Brute force: per row, each hypothesis's log-likelihood from a fresh solve of its floor plan
+    # under each model; summed over the participant's rows; logsumexp − log H.
+    hyp = HypothesisSet(resolve_thetas("paper-real", 3), resolve_betas("paper-real"))
+    H = len(hyp)
+    rows = manifest_trajectories(study_dir)
+    start = {
+        (name, m): DiscreteBelief.from_mdp(parse_floor_plan((study_dir / name).read_text()).to_mdp(), hyp,
+                                           model=m)
+        for name in ("a.txt", "b.txt")
+        for m in MODELS
+    }
+    ll: dict = {}
+    for pid, name, tr in rows:
+        for m in MODELS:
+            ll[pid, m] = ll.get((pid, m), 0.0) + start[name, m].update(tr).log_likelihood
+    evidence = {key: float(logsumexp(v)) - np.log(H) for key, v in ll.items()}
+    got = read_csv(out / "models.csv")
+    assert list(got[0]) == [
+        "participant",
+        "log_evidence_maxent",
+        "log_evidence_maxent-relative",
+        "best_model",
+        "log_bf_maxent",
+        "log_bf_maxent-relative",
+        "heldout_episodes",
+        "heldout_actions",
+        "heldout_per_action_maxent",
+        "heldout_per_action_maxent-relative",
+    ]
+    assert [r["participant"] for r in got] == ["P1", "P2", "P3", "P4"]
+    for r in got:
+        ev = {m: evidence[r["participant"], m] for m in MODELS}
+        assert abs(ev["maxent"] - ev["maxent-relative"]) > 1e-3  # the two models do differ here
+        best = max(ev, key=ev.get)
+        assert r["best_model"] == best
+        for m in MODELS:
+            assert float(r[f"log_evidence_{m}"]) == pytest.approx(ev[m], abs=1e-8)
+            assert float(r[f"log_bf_{m}"]) == pytest.approx(ev[m] - ev[best], abs=1e-8)
+    # Held out: P4's last episode, predicted from the posterior given its first two.
+    (tr4,) = [tr for pid, _, tr in rows if pid == "P4"]
+    fit, test = tr4.first(2), Trajectories(tr4.episode[12:], tr4.step[12:], tr4.state[12:], tr4.action[12:])
+    assert test.n_episodes == 1 and set(test.episode.tolist()) == {tr4.episode_ids[-1]}
+    p4 = got[3]
+    assert (p4["heldout_episodes"], p4["heldout_actions"]) == ("1", "6")
+    for m in MODELS:
+        post = start["a.txt", m].update(fit).probabilities
+        predictive = float(logsumexp(start["a.txt", m].update(test).log_likelihood, b=post))
+        assert float(p4[f"heldout_per_action_{m}"]) == pytest.approx(predictive / 6, abs=1e-8)
+    # One-episode tasks have nothing to hold out (P3 has two tasks of one episode each).
+    for r in got[:3]:
+        assert r["heldout_episodes"] == "0" and r["heldout_per_action_maxent"] == ""
+    # result.json: the main result is --model's default (maxent); model_evidence beside it.
+    doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
+    assert doc["settings"]["model"] == "maxent"
+    assert doc["log_evidence"] == pytest.approx(evidence["P3", "maxent"], abs=1e-8)
+    me = doc["model_evidence"]
+    assert [f["model"] for f in me["models"]] == list(MODELS) and me["n_hypotheses"] == H
+    assert "at least 2 episodes" in me["unavailable"]["heldout_log_likelihood_per_action"]
+    md = (out / "study.md").read_text()
+    assert "## Model evidence" in md and sum(ln.startswith("| P") for ln in md.splitlines()) == 12
+    # The extra phase is its own sweep; a rerun runs nothing and writes the same table.
+    assert (out / "engine" / "inference-maxent-relative").is_dir()
+    assert not (out / "engine" / "inference-maxent").exists()  # --model's sweep serves maxent
+    before = (out / "models.csv").read_bytes()
+    res = invoke(*args)
+    assert res.exit_code == 0 and "0 engine task(s) run, 6 already done" in res.stdout, res.output
+    assert (out / "models.csv").read_bytes() == before
+
+
+@pytest.mark.parametrize("method", ["map", "nuts"])
+def test_models_need_the_discrete_method(study_dir, method):
+    out = study_dir / "out"
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--method", method, "--models", "maxent")
+    assert_input_error(res, "--models needs --method discrete")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "spec, fragment",
+    [
+        ("maxent,nope", "--models must be one of"),
+        ("maxent,maxent", "names a model twice"),
+        (",", "at least one"),
+    ],
+)
+def test_bad_models_are_refused(study_dir, spec, fragment):
+    out = study_dir / "out"
+    assert_input_error(invoke("study", study_dir / "manifest.csv", "--out", out, "--models", spec), fragment)
+    assert not out.exists()

@@ -64,19 +64,31 @@ def study(
         str | None, typer.Option(help="Dask scheduler address, e.g. tcp://HOST:8786.")
     ] = None,
     model: ModelOption = "maxent",
+    models: Annotated[
+        str | None,
+        typer.Option(
+            help="Also compare these observation models (comma-separated, --method discrete only): "
+            "each participant's log evidence, Bayes factors and held-out check in DIR/models.csv; "
+            "the main results still use --model."
+        ),
+    ] = None,
 ) -> None:
     """Run every participant of a study: estimates, Tables V–VI, a figure per participant.
 
     Writes DIR/study.csv and study.md (one row per participant, the joint posterior over
     their tasks), DIR/tasks.csv (one row per manifest row) and DIR/participants/ID/result.json
-    and ID.png. Floor plans shared by participants are solved once; a second run on the
-    same DIR resumes (docs/user-studies.md).
+    and ID.png; with --models, DIR/models.csv too. Floor plans shared by participants are
+    solved once; a second run on the same DIR resumes (docs/user-studies.md).
     """
+    from ..userstudy.evidence import parse_models
     from ..userstudy.run import StudyFailed, StudyOptions, run_study
 
     path = resolve_manifest(manifest)
     if method not in ("discrete", "map", "nuts"):
         raise InputError(f"--method must be one of discrete, map, nuts, got {method!r}")
+    if models is not None and method != "discrete":
+        raise InputError(f"--models needs --method discrete (got --method {method})")
+    compared = parse_models(models) if models is not None else ()
     opts = StudyOptions(
         thetas=thetas,
         betas=betas,
@@ -86,6 +98,7 @@ def study(
         fill_gaps=fill_gaps,
         snap=snap,
         model=model,
+        models=compared,
     )
 
     def on_task(phase, total, todo, res) -> None:
@@ -108,8 +121,12 @@ def study(
             f"(optimal {r['optimal_path_length']}), filled gaps {r['filled_gaps']}, "
             f"snapped samples {r['snapped_samples']}"
         )
+    for pid, ev in (outcome.evidence or {}).items():
+        bfs = ", ".join(f"{f['model']} {f['log_bayes_factor']:.2f}" for f in ev["models"])
+        _say(f"{pid}: best model {ev['best'] or 'n/a'} (log Bayes factors vs best: {bfs})")
+    wrote = "study.csv, study.md, tasks.csv" + (", models.csv" if outcome.evidence else "")
     _say(
-        f"wrote {out}/study.csv, study.md, tasks.csv and participants/: {len(outcome.participants)} "
+        f"wrote {out}/{wrote} and participants/: {len(outcome.participants)} "
         f"participants; {outcome.tasks_run} engine task(s) run, {outcome.tasks_skipped} already done "
         f"({outcome.wall_time_s:.1f} s)"
     )

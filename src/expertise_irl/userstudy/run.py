@@ -7,10 +7,14 @@ Steps (each engine phase is resumable: a finished task is not run again):
 2. inference on the engine, in ``DIR/engine/inference``: for ``discrete`` one task per
    distinct floor plan (one solve of the hypothesis set, shared by every participant on it),
    for ``map`` / ``nuts`` one task per participant (all their tasks' log-likelihoods summed);
-3. the joint posterior of each participant (the product over their tasks);
+3. the joint posterior of each participant (the product over their tasks); with
+   ``--models`` (discrete only), the same inference phase once per other model, in
+   ``DIR/engine/inference-<model>``, and each participant's evidence per model
+   (:mod:`.evidence`);
 4. optimal paths on the engine, in ``DIR/engine/optimal``: one task per floor plan, β = 0.001
    with each participant's θ̂, from the start of each of their episodes;
-5. the reports: ``DIR/study.csv``, ``DIR/study.md``, ``DIR/tasks.csv`` and, per participant,
+5. the reports: ``DIR/study.csv``, ``DIR/study.md``, ``DIR/tasks.csv`` (``DIR/models.csv``
+   with ``--models``) and, per participant,
    ``DIR/participants/ID/result.json`` and ``DIR/participants/ID/ID.png``.
 
 ``DIR/study.json`` records what the study is (inputs with their digests, options); a
@@ -24,7 +28,7 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +38,8 @@ from .. import __version__
 from ..errors import InputError
 from ..experiments import engine
 from ..experiments.studies.user_study import CONTINUOUS, DISCRETE, OPTIMAL, UserStudyConfig
-from ..results import file_digest, map_digest, write_json
+from ..results import file_digest, finite_or_null, map_digest, write_json
+from . import evidence as model_evidence
 from .manifest import Manifest, StudyTask, read_manifest
 from .paths import COUNTS, OPTIMAL_BETA, path_counts
 from .report import (
@@ -60,6 +65,7 @@ class StudyOptions:
     fill_gaps: bool = False
     snap: bool = False
     model: str = "maxent"
+    models: tuple[str, ...] = ()  # --models: observation models to compare (discrete only)
 
 
 class StudyFailed(Exception):
@@ -78,6 +84,7 @@ class StudyOutcome:
     tasks_skipped: int
     wall_time_s: float
     feature_names: tuple[str, ...]
+    evidence: dict[str, dict[str, Any]] | None = None  # --models: per participant
 
 
 def map_key(plan) -> str:
@@ -122,7 +129,10 @@ def _identity(manifest: Manifest, opts: StudyOptions) -> dict[str, Any]:
     for t in manifest.tasks:
         files[str(t.source)] = file_digest(t.source)
         files[str(t.map_path)] = map_digest(t.plan)
-    ident = {"layout": LAYOUT, "options": asdict(opts), "inputs": files}
+    options = asdict(opts)
+    if not opts.models:  # a study without --models keeps the identity it had before the option
+        del options["models"]
+    ident = {"layout": LAYOUT, "options": options, "inputs": files}
     ident["hash"] = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
     return ident
 
@@ -189,6 +199,7 @@ def run_study(
     check_model(opts.model, "--model")
     cfg_probe = UserStudyConfig(data="{}", method=opts.method)  # a bad --method is reported first
     del cfg_probe
+    model_evidence.check_models(opts.models, opts.method)
     manifest = read_manifest(
         manifest_path, rate=opts.rate, max_dt=opts.max_dt, fill_gaps=opts.fill_gaps, snap=opts.snap
     )
@@ -200,6 +211,8 @@ def run_study(
     ident = _identity(manifest, opts)
     _open_out(out, ident, manifest)
     data = study_data(manifest)
+    if opts.models:  # the held-out split rides on the inference phase as extra rows
+        data["tasks"] += model_evidence.split_rows(data["tasks"])
     cfg = UserStudyConfig(
         data=json.dumps(data, sort_keys=True),
         thetas=opts.thetas,
@@ -215,6 +228,17 @@ def run_study(
         if opts.method == "discrete"
         else _continuous_estimates(manifest, rows)
     )
+    evidence, s_models = None, []
+    if opts.models:
+        lls = {}
+        for m in opts.models:
+            where = out / "engine" / ("inference" if m == opts.model else f"inference-{m}")
+            if m != opts.model:
+                s_models.append(_run_phase(DISCRETE, where, replace(cfg, model=m), f"inference ({m})",
+                                           workers, scheduler, on_task))
+            lls[m] = _log_likelihoods(rows if m == opts.model else engine.load(where))
+        evidence = model_evidence.participant_evidence(data["tasks"], lls, hyp)
+        data["tasks"] = [t for t in data["tasks"] if "part" not in t]
     # Optimal paths: each row's θ̂ is its participant's (joint) θ̂.
     for t in data["tasks"]:
         t["theta_hat"] = list(estimates[t["participant"]]["doc"]["theta_hat"])
@@ -224,10 +248,15 @@ def run_study(
     cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=opts.model, method=opts.method)
     s2 = _run_phase(OPTIMAL, out / "engine" / "optimal", cfg2, "optimal", workers, scheduler, on_task)
     optimal = engine.load(out / "engine" / "optimal")
-    participants = _reports(out, manifest, estimates, optimal, opts, hyp, names)
-    return StudyOutcome(
-        out, participants, s1.ran + s2.ran, s1.skipped + s2.skipped, time.perf_counter() - t0, names
-    )
+    participants = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence)
+    ran = s1.ran + s2.ran + sum(s.ran for s in s_models)
+    skipped = s1.skipped + s2.skipped + sum(s.skipped for s in s_models)
+    return StudyOutcome(out, participants, ran, skipped, time.perf_counter() - t0, names, evidence)
+
+
+def _log_likelihoods(rows) -> dict[int, np.ndarray]:
+    """``{engine row: [H] log-likelihoods}`` of a discrete inference sweep."""
+    return {int(k): g.sort_values("hypothesis")["log_likelihood"].to_numpy() for k, g in rows.groupby("task")}
 
 
 def _starts(task: StudyTask) -> list[tuple[int, int]]:
@@ -243,7 +272,7 @@ def _discrete_estimates(manifest: Manifest, rows, hyp) -> dict[str, dict[str, An
     from ..results import discrete_result
 
     H = len(hyp)
-    ll = {int(k): g.sort_values("hypothesis")["log_likelihood"].to_numpy() for k, g in rows.groupby("task")}
+    ll = _log_likelihoods(rows)
     log_prior = np.full(H, -np.log(H))
     out = {}
     for pid in manifest.participants:
@@ -302,7 +331,9 @@ def _cells_of(plan, mdp, states, actions) -> np.ndarray:
     return plan.state_cells()[s]
 
 
-def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names):
+def _reports(
+    out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names, evidence=None
+):
     from ..results import continuous_result, samples_path_for
     from .figure import render_participant_png
 
@@ -395,6 +426,7 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
             "fill_gaps": opts.fill_gaps,
             "snap": opts.snap,
             "optimal_beta": OPTIMAL_BETA,
+            **({"models": list(opts.models)} if opts.models else {}),
         }
         if opts.method == "discrete":
             settings.update(
@@ -432,6 +464,8 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         doc["counts"] = total
         doc["optimal_counts"] = total_opt
         doc["filled_gaps"], doc["snapped_samples"] = filled, snapped
+        if evidence is not None:
+            doc["model_evidence"] = finite_or_null(evidence[pid])
         write_json(d / "result.json", doc)
         render_participant_png(d / f"{pid}.png", pid, panels, doc)
         modes[pid] = doc.get("modes", [])
@@ -461,5 +495,9 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         modes=modes,
         title=f"Study {manifest.path.name}",
     )
+    if evidence is not None:
+        write_csv(out / "models.csv", model_evidence.models_rows(evidence),
+                  model_evidence.models_columns(opts.models))
+        md += model_evidence.evidence_markdown(evidence, opts.models, opts.model)
     (out / "study.md").write_text(md, encoding="utf-8")
     return study_rows
