@@ -32,7 +32,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import jax
-import jax.flatten_util
 import jax.numpy as jnp
 import numpy as np
 
@@ -169,10 +168,9 @@ def nuts_posterior(
     for one person, a fraction of the effective samples: docs/calibration.md).
     """
     import arviz as az
-    import numpyro
     import numpyro.distributions as dist
+    from numpyro.distributions.transforms import biject_to
     from numpyro.infer.hmc import hmc
-    from numpyro.infer.util import initialize_model
 
     for name, value, least in (("num_warmup", num_warmup, 1), ("num_samples", num_samples, 1),
                                ("num_chains", num_chains, 1)):
@@ -187,42 +185,48 @@ def nuts_posterior(
     theta_prior = named_theta if theta_prior is None else theta_prior
     beta_prior = named_beta if beta_prior is None else beta_prior
 
+    # The posterior in unconstrained coordinates x = (u_θ, u_β), written out rather than traced
+    # from a NumPyro model (numpyro.infer.util.initialize_model keeps ~400 memory maps of
+    # compiled code per call, so a process running NUTS ~150 times ran out of them).
     # The counts are an argument of every compiled program, not a constant in it: programs for
     # one map are then the same for every data set, and JAX's persistent cache (where enabled,
     # as the command line does) serves them to later runs without compiling again.
-    # A log-uniform β is sampled as log β, uniform: NumPyro would otherwise map β's interval
-    # to the real line by a sigmoid in β, which squeezes experts' many orders of magnitude near
-    # the lower edge into a sliver of curvature that NUTS cannot step through (divergences).
+    # A log-uniform β is sampled as log β, uniform: mapping β's interval to the real line by a
+    # sigmoid in β would squeeze experts' many orders of magnitude near the lower edge.
     log_scale = isinstance(beta_prior, dist.LogUniform)
+    beta_dist = (dist.Uniform(jnp.log(beta_prior.low), jnp.log(beta_prior.high)) if log_scale
+                 else beta_prior)
+    theta_map, beta_map = biject_to(theta_prior.support), biject_to(beta_dist.support)
+    n_u_theta = theta_map.inverse_shape((first.n_features,))[0]
 
-    def numpyro_model(start, counts):
-        theta = numpyro.sample("theta", theta_prior)
-        if log_scale:
-            log_range = dist.Uniform(jnp.log(beta_prior.low), jnp.log(beta_prior.high))
-            log_beta = numpyro.sample("log_beta", log_range)
-            beta = jnp.exp(log_beta)
-        else:
-            beta = numpyro.sample("beta", beta_prior)
-        ll = f(theta, beta, start=start if warm_start else None, counts=counts)[0]
-        numpyro.factor("log_likelihood", ll)
+    def constrained(x, start=None, counts=None):
+        theta, b = theta_map(x[:n_u_theta]), beta_map(x[n_u_theta])
+        return theta, (jnp.exp(b) if log_scale else b)
+
+    def potential(x, start, counts):
+        u_theta, u_beta = x[:n_u_theta], x[n_u_theta]
+        theta, b = theta_map(u_theta), beta_map(u_beta)
+        beta = jnp.exp(b) if log_scale else b
+        log_p = (theta_prior.log_prob(theta) + theta_map.log_abs_det_jacobian(u_theta, theta)
+                 + beta_dist.log_prob(b) + beta_map.log_abs_det_jacobian(u_beta, b)
+                 + f(theta, beta, start=start if warm_start else None, counts=counts)[0])
+        return -log_p
+
+    def potential_gen(start, counts):
+        return lambda x: potential(x, start, counts)
 
     key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
     zero, counts = f.zero_start(), f.counts
-    init_params, potential_gen, postprocess_gen, _ = initialize_model(
-        jax.random.split(key_init, num_chains), numpyro_model, model_args=(zero, counts), dynamic_args=True)
     init_kernel, sample_kernel = hmc(potential_fn_gen=potential_gen, algo="NUTS")
-    x_init = np.asarray(jax.vmap(lambda z: jax.flatten_util.ravel_pytree(z)[0])(init_params.z), np.float64)
-    unravel = jax.flatten_util.ravel_pytree(jax.tree_util.tree_map(lambda a: a[0], init_params.z))[1]
+    # NumPyro's default start (init_to_uniform): uniform on (-2, 2) in unconstrained coordinates.
+    x_init = np.asarray(jax.random.uniform(key_init, (num_chains, n_u_theta + 1), minval=-2.0, maxval=2.0),
+                        np.float64)
     keys = jax.random.split(key_run, num_chains)
     total = num_warmup + num_samples
     chunk = min(CHUNK, total)  # the last chunk may run past ``total``; those draws are dropped
 
-    def constrained(z, start, counts):
-        c = postprocess_gen(start, counts)(z)
-        return c["theta"], jnp.exp(c["log_beta"]) if log_scale else c["beta"]
-
     def init_chain(x, inverse_mass, key, counts):
-        state = init_kernel(unravel(x), num_warmup, inverse_mass_matrix=inverse_mass, dense_mass=dense_mass,
+        state = init_kernel(x, num_warmup, inverse_mass_matrix=inverse_mass, dense_mass=dense_mass,
                             target_accept_prob=target_accept, model_args=(zero, counts), rng_key=key)
         start = f.start_at(*constrained(state.z, zero, counts), counts=counts) if warm_start else zero
         return state, start
@@ -237,7 +241,7 @@ def nuts_posterior(
             return (state, start), (theta, beta, state.diverging, state.num_steps, state.accept_prob)
         return jax.lax.scan(body, carry, None, length=chunk)
 
-    value_and_grad = jax.jit(jax.value_and_grad(lambda x, counts: potential_gen(zero, counts)(unravel(x))))
+    value_and_grad = jax.jit(jax.value_and_grad(lambda x, counts: potential(x, zero, counts)))
     eye = np.eye(x_init.shape[1]) if dense_mass else np.ones(x_init.shape[1])
     # Compiled once, here, and shared: the chain threads only run compiled code.
     value_and_grad(jnp.asarray(x_init[0]), counts)
@@ -245,15 +249,17 @@ def nuts_posterior(
     carry0 = init_compiled(x_init[0], eye, keys[0], counts)
     chunk_compiled = jax.jit(run_chunk).lower(carry0, counts).compile()
 
-    def potential(x):
+    def potential_and_grad(x):
         return value_and_grad(x, counts)
+
     done = np.zeros(num_chains, dtype=int)
     lock, stop = threading.Lock(), threading.Event()
 
     def run_chain(c: int) -> list:
         x, inverse_mass = x_init[c], eye
         if laplace_init:
-            x, inverse_mass = _laplace_start(potential, x, np.random.default_rng([int(seed), c]), dense_mass)
+            rng = np.random.default_rng([int(seed), c])
+            x, inverse_mass = _laplace_start(potential_and_grad, x, rng, dense_mass)
         carry = init_compiled(x, inverse_mass, keys[c], counts)
         parts = []
         while len(parts) * chunk < total and not stop.is_set():
