@@ -378,3 +378,27 @@ def test_diagnostics_warnings_are_on_the_figure(results):
     fig = rp.result_figure(doc, source=results["map"])
     assert not [t for sf in fig.subfigs for t in sf.texts if t.get_gid() == "warnings"]
     assert not [t for t in fig.texts if t.get_gid() == "warnings"]
+
+
+def test_a_floor_plan_is_drawn_as_a_floor_plan():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    from expertise_irl.demos import simulate
+    from expertise_irl.worlds import render
+    from expertise_irl.worlds.warehouse import parse_floor_plan
+    from expertise_irl.worlds.warehouse_render import ROAD_COLOR
+
+    plan = parse_floor_plan("S>>>v\n..xxv\n....G\n")
+    mdp = plan.to_mdp()
+    trajs = simulate(mdp, np.array([0.6, 0.2, 0.2]), 0.1, 2, np.random.default_rng(0))
+    fig, ax = plt.subplots()
+    handles = rp.draw_demos_on_map(ax, mdp, plan, trajs)
+    arrows = [c for c in ax.collections if c.get_gid() == render.ROAD_ARROWS_GID]
+    assert len(arrows) == 1 and to_hex(arrows[0].get_facecolor()[0]) == ROAD_COLOR  # green, not zone blue
+    assert len(arrows[0].get_offsets()) == 5  # the five road cells (>>>v, v)
+    assert any(h.get_label() == "restricted" for h in handles)
+    plt.close(fig)

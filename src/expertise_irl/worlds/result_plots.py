@@ -377,7 +377,15 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
 
     Returns the legend handles (zones, markers, episodes).
     """
-    if zone_map is not None:
+    from .warehouse import WarehouseMap
+
+    if isinstance(zone_map, WarehouseMap):  # a floor plan: roads as arrows, restricted red
+        from .warehouse_render import draw_floor_plan, floor_plan_legend_handles
+
+        draw_floor_plan(ax, zone_map, legend=False)
+        grid = zone_map
+        handles = floor_plan_legend_handles(zone_map)
+    elif zone_map is not None:
         render.draw_map(ax, zone_map, legend=False)
         grid = zone_map
         handles = render.map_legend_handles(zone_map)
