@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .csv_rows import read_rows
 from .errors import InputError, where
 from .mdp import TabularMDP
 from .models import DEFAULT_MODEL, check_model
@@ -485,25 +486,7 @@ def _read_rows(path: str | Path, heading: bool = False) -> tuple[str, np.ndarray
     """Format name, ``[n, 4]`` int values, ``[n]`` line numbers of the data rows, and with
     ``heading`` the ``[n]`` headings (0 = h, 1 = v) of a grid file's ``heading`` column
     (None when the file has none)."""
-    if Path(path).is_dir():
-        raise InputError(f"{where(path)}is a directory, expected a demonstrations CSV file")
-    if not Path(path).is_file():
-        raise InputError(f"{where(path)}no such file")
-    records: list[tuple[int, list[str]]] = []
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            reader = csv.reader(fh)
-            try:
-                for row in reader:
-                    fields = [f.strip() for f in row]
-                    if any(fields):
-                        records.append((reader.line_num, fields))
-            except csv.Error as exc:
-                raise InputError(f"{where(path, reader.line_num + 1)}malformed CSV ({exc})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{where(path)}not a UTF-8 text file") from None
-    if not records:
-        raise InputError(f"{where(path)}no demonstrations: the file is empty")
+    records = read_rows(path, kind="a demonstrations CSV file", nothing="no demonstrations")
     line, header = records[0]
     names = [h.lower() for h in header]
     # Columns are found by name, in any order; other columns (a timestamp, say) are ignored.

@@ -31,7 +31,6 @@ the right from the left edge, y down from the top edge (up from the bottom with
 
 from __future__ import annotations
 
-import csv
 import heapq
 import math
 from dataclasses import dataclass
@@ -39,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .csv_rows import read_rows
 from .demos import Trajectories, validate
 from .errors import InputError, where
 from .worlds.warehouse import ACTION_AXIS, HORIZONTAL, VERTICAL, WarehouseMap
@@ -122,25 +122,7 @@ def read_recording(path: str | Path) -> Recording:
         are not contiguous.
     """
     path = Path(path)
-    if path.is_dir():
-        raise InputError(f"{where(path)}is a directory, expected a recording CSV file")
-    if not path.is_file():
-        raise InputError(f"{where(path)}no such file")
-    records: list[tuple[int, list[str]]] = []
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            reader = csv.reader(fh)
-            try:
-                for row in reader:
-                    fields = [f.strip() for f in row]
-                    if any(fields):
-                        records.append((reader.line_num, fields))
-            except csv.Error as exc:
-                raise InputError(f"{where(path, reader.line_num + 1)}malformed CSV ({exc})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{where(path)}not a UTF-8 text file") from None
-    if not records:
-        raise InputError(f"{where(path)}no samples: the file is empty")
+    records = read_rows(path, kind="a recording CSV file", nothing="no samples")
     line, header = records[0]
     names = [h.lower() for h in header]
     missing = [c for c in RECORDING_COLUMNS if c not in names]
