@@ -20,11 +20,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
+from cli_helpers import assert_input_error, invoke, ok
 
 import expertise_irl
 from expertise_irl import cli
-from expertise_irl.cli import app
 from expertise_irl.demos import read_demos_csv
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, theta_grid
 from expertise_irl.mdp import TabularMDP
@@ -40,33 +39,6 @@ OLD_MTIME_NS = 1_000_000_000 * 1_000_000_000  # 2001-09-09: any rewrite moves th
 
 
 # ----------------------------------------------------------------------------- helpers
-def invoke(*args):
-    """Run the CLI in-process; every argument is passed as a string."""
-    return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def ok(result) -> None:
-    """The command succeeded and nothing went wrong on the way."""
-    assert result.exit_code == 0, f"exit {result.exit_code}\n{result.output}\n{result.exception!r}"
-    assert result.exception is None
-    assert "Traceback" not in result.output
-
-
-def assert_input_error(result, *fragments: str) -> str:
-    """Exit code 2, exactly one non-empty line ``error: ...`` on stderr naming ``fragments``."""
-    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}\n{result.exception!r}"
-    # A handled error ends in SystemExit(2); an escaped exception would be stored here instead.
-    assert isinstance(result.exception, SystemExit), repr(result.exception)
-    assert "Traceback" not in result.output
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert len(lines) == 1, f"expected a one-line error, got {lines}"
-    line = lines[0]
-    assert line.startswith("error: "), line
-    assert line in result.stderr, "the error must go to stderr"
-    assert result.stdout.strip() == ""
-    for fragment in fragments:
-        assert fragment in line, f"{fragment!r} not in {line!r}"
-    return line
 
 
 def cli_command() -> list[str]:

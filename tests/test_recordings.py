@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
+from cli_helpers import assert_input_error, invoke
 
-from expertise_irl.cli import app
 from expertise_irl.demos import read_demos_csv
 from expertise_irl.errors import InputError
 from expertise_irl.recordings import discretise, read_recording, shortest_free_path
@@ -27,22 +26,6 @@ PLAN_TEXT = (
     ".....G\n"
 )
 PLAN = parse_floor_plan(PLAN_TEXT)
-
-
-def invoke(*args):
-    return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def assert_input_error(result, *fragments: str) -> str:
-    """Exit 2, one line ``error: ...`` on stderr, naming every fragment."""
-    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}\n{result.exception!r}"
-    assert isinstance(result.exception, SystemExit), repr(result.exception)
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), lines
-    assert lines[0] in result.stderr and "Traceback" not in result.output
-    for f in fragments:
-        assert f in lines[0], f"{f!r} not in {lines[0]!r}"
-    return lines[0]
 
 
 def write_rec(path, rows, header="episode,t,x,y"):

@@ -9,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import assert_input_error, invoke
 from scipy.stats import spearmanr
-from typer.testing import CliRunner
 
-from expertise_irl.cli import app
 from expertise_irl.demos import Trajectories, write_demos_csv
 from expertise_irl.userstudy.paths import greedy_path, path_counts
 from expertise_irl.worlds.warehouse import parse_floor_plan
@@ -22,20 +21,6 @@ TOML = 'world = "warehouse"\ncell_size = 1.0\n'
 # 0 1 2 3 4
 PLAN = "S>>>v\n..xxv\n....G\n"
 EXAMPLE = Path(str(resources.files("expertise_irl.userstudy") / "example"))
-
-
-def invoke(*args):
-    return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def assert_input_error(result, *fragments: str) -> str:
-    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}\n{result.exception!r}"
-    assert isinstance(result.exception, SystemExit), repr(result.exception)
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), lines
-    for f in fragments:
-        assert f in lines[0], f"{f!r} not in {lines[0]!r}"
-    return lines[0]
 
 
 def write(path: Path, text: str) -> Path:

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from cli_helpers import assert_input_error, invoke
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
-from typer.testing import CliRunner
 
-from expertise_irl.cli import app
 from expertise_irl.demos import read_demos_csv, simulate, write_demos_csv
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
@@ -27,22 +26,6 @@ from expertise_irl.worlds.zones import ZoneMap
 UP, DOWN, LEFT, RIGHT = range(4)
 H, V = 0, 1
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-def invoke(*args):
-    return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def assert_input_error(result, *fragments: str) -> str:
-    """Exit 2, one line ``error: ...`` on stderr, naming every fragment."""
-    assert result.exit_code == 2, f"exit {result.exit_code}\n{result.output}\n{result.exception!r}"
-    assert isinstance(result.exception, SystemExit), repr(result.exception)
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), lines
-    assert lines[0] in result.stderr
-    for f in fragments:
-        assert f in lines[0], f"{f!r} not in {lines[0]!r}"
-    return lines[0]
 
 
 def write_plan(tmp_path, text: str, toml: str = 'world = "warehouse"\ncell_size = 1.0\n', name="plan"):
