@@ -199,7 +199,7 @@ def nuts_posterior(
     theta_map, beta_map = biject_to(theta_prior.support), biject_to(beta_dist.support)
     n_u_theta = theta_map.inverse_shape((first.n_features,))[0]
 
-    def constrained(x, start=None, counts=None):
+    def constrained(x):
         theta, b = theta_map(x[:n_u_theta]), beta_map(x[n_u_theta])
         return theta, (jnp.exp(b) if log_scale else b)
 
@@ -228,14 +228,14 @@ def nuts_posterior(
     def init_chain(x, inverse_mass, key, counts):
         state = init_kernel(x, num_warmup, inverse_mass_matrix=inverse_mass, dense_mass=dense_mass,
                             target_accept_prob=target_accept, model_args=(zero, counts), rng_key=key)
-        start = f.start_at(*constrained(state.z, zero, counts), counts=counts) if warm_start else zero
+        start = f.start_at(*constrained(state.z), counts=counts) if warm_start else zero
         return state, start
 
     def run_chunk(carry, counts):
         def body(c, _):
             state, start = c
             state = sample_kernel(state, model_args=(start, counts))
-            theta, beta = constrained(state.z, start, counts)
+            theta, beta = constrained(state.z)
             if warm_start:
                 start = f.start_at(theta, beta, start, counts=counts)
             return (state, start), (theta, beta, state.diverging, state.num_steps, state.accept_prob)
