@@ -53,3 +53,20 @@ def machine_info() -> dict[str, object]:
         "jax_backend": jax.default_backend(),
         "command": " ".join([os.path.basename(sys.executable), *sys.argv]),
     }
+
+
+def timed_cli(args: list[str], jax_cache) -> float:
+    """Wall seconds of ``expertise-irl ARGS`` in a fresh process with JAX's persistent cache in
+    ``jax_cache``; exits with the command's stderr if it fails."""
+    import subprocess
+    import time
+    from pathlib import Path
+
+    env = {**os.environ, "EXPERTISE_IRL_JAX_CACHE": str(jax_cache)}
+    cmd = [str(Path(sys.executable).with_name("expertise-irl")), *map(str, args)]
+    t = time.perf_counter()
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    return wall

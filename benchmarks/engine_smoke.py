@@ -15,25 +15,14 @@ import argparse
 import json
 import os
 import shutil
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-from _machine import machine_info
+from _machine import machine_info, timed_cli
 
 
 def _cli_run(study: str, scale: str, out: Path, extra: list[str], cache: Path) -> float:
-    env = {**os.environ, "EXPERTISE_IRL_JAX_CACHE": str(cache)}
-    exe = Path(sys.executable).with_name("expertise-irl")
-    cmd = [str(exe), "experiment", "run", study, "--out", str(out), "--scale", scale, *extra]
-    t = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
-    return wall
+    return timed_cli(["experiment", "run", study, "--out", out, "--scale", scale, *extra], cache)
 
 
 def main() -> None:

@@ -14,30 +14,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-from _machine import machine_info
+from _machine import machine_info, timed_cli
 
 ARGS = ["--fill-gaps", "--model", "maxent-relative"]
 
 
 def _run(out: Path, cache: Path, workers: int | None) -> float:
-    env = {**os.environ, "EXPERTISE_IRL_JAX_CACHE": str(cache)}
-    exe = Path(sys.executable).with_name("expertise-irl")
-    cmd = [str(exe), "study", "example", "--out", str(out), *ARGS]
-    if workers:
-        cmd += ["--workers", str(workers)]
-    t = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
-    return wall
+    extra = ["--workers", str(workers)] if workers else []
+    return timed_cli(["study", "example", "--out", out, *ARGS, *extra], cache)
 
 
 def main() -> None:
@@ -56,12 +43,6 @@ def main() -> None:
               "warm_s": round(warm, 1), "identical_study_csv": same}
     for k, v in result.items():
         print(f"{k}: {v}")
-    try:
-        with open("/proc/cpuinfo") as fh:
-            flags = next((ln.split(":", 1)[1].split() for ln in fh if ln.startswith("flags")), [])
-        print("cpu flags:", " ".join(f for f in flags if f in ("sse4_2", "avx", "avx2", "fma", "avx512f")))
-    except OSError:
-        pass
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")
     if not same:
