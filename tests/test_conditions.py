@@ -206,3 +206,17 @@ def test_seeded_reproducibility(all_thetas, theta_k):
         # Different seeds give different draws for some seed (not a constant function).
         outs = {tuple(np.ravel(f(rng(s)))) for s in range(20)}
         assert len(outs) > 1
+
+
+def test_set_composition_by_hand():
+    from expertise_irl.inference.conditions import set_composition
+
+    thetas = np.array([[1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
+    got = set_composition([1.0, 0.0, 0.0], 0.7, thetas, [0.01, 0.5, 1.0])
+    # cosines with the truth: 1, 1/√2, 0; pairs: (1,2) 1/√2, (1,3) 0, (2,3) 0.
+    assert got["theta_k_truth_similarity"] == pytest.approx((1 + 2 ** -0.5) / 3, abs=1e-12)
+    assert got["theta_k_diversity"] == pytest.approx(2 ** -0.5 / 3, abs=1e-12)
+    assert got["beta_set_distance"] == pytest.approx(0.2, abs=1e-12)
+    single = set_composition([0.0, 1.0, 0.0], 1.0, thetas[:1], [1.0])
+    assert single["theta_k_diversity"] == 1.0 and single["beta_set_distance"] == 0.0
+    assert single["theta_k_truth_similarity"] == 0.0

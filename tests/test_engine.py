@@ -236,6 +236,12 @@ def test_condition_rows_obey_their_definitions(reference):
     ins = df[(df.truth == "in_set")]
     assert (ins["group"] == ins["group_true"]).all()
     assert df[(df.truth == "in_set") & (df.condition == "full")]["truth_probability"].notna().all()
+    # Table I's factors: in-set truths sit on the set (β distance 0, θ* among Θ_k's members).
+    assert (ins["beta_set_distance"] == 0).all()
+    out = df[df.truth == "out_of_set"]
+    assert (out["beta_set_distance"] > 0).all()
+    assert ((df["theta_k_truth_similarity"] > 0) & (df["theta_k_truth_similarity"] <= 1)).all()
+    assert ((df["theta_k_diversity"] > 0) & (df["theta_k_diversity"] < 1)).all()
 
 
 def _documented_columns() -> list[tuple[str, str]]:

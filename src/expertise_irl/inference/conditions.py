@@ -68,3 +68,22 @@ def out_of_set_truth(
     if not 0 < lo < hi:
         raise InputError(f"beta_range must satisfy 0 < low < high, got {beta_range}")
     return outside[int(rng.integers(len(outside)))].copy(), float(rng.uniform(lo, hi))
+
+
+def set_composition(theta_star, beta_star: float, thetas, betas) -> dict[str, float]:
+    """How close a truth is to a set Θ × B (the factors of the paper's Table I).
+
+    Returns ``theta_k_truth_similarity`` (mean cosine between θ* and the members of Θ),
+    ``theta_k_diversity`` (mean cosine over the distinct pairs of Θ; 1.0 for a single member)
+    and ``beta_set_distance`` (min |β* − b| over b ∈ B).
+    """
+    t = np.asarray(theta_star, dtype=np.float64)
+    th = np.atleast_2d(np.asarray(thetas, dtype=np.float64))
+    unit = th / np.linalg.norm(th, axis=1, keepdims=True)
+    to_truth = unit @ (t / np.linalg.norm(t))
+    pairs = unit @ unit.T
+    iu = np.triu_indices(len(th), k=1)
+    diversity = float(pairs[iu].mean()) if len(th) > 1 else 1.0
+    b = parse_betas(betas)
+    return {"theta_k_truth_similarity": float(to_truth.mean()), "theta_k_diversity": diversity,
+            "beta_set_distance": float(np.min(np.abs(b - float(beta_star))))}

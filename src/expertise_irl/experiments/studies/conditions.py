@@ -271,6 +271,7 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
     """The rows of one person: every condition × episode count 1..N."""
     from ...hypotheses import HypothesisSet, expertise_group
     from ...inference.belief import DiscreteBelief
+    from ...inference.conditions import set_composition
     from ...metrics import cosine_similarity, expertise_distance, regret_from_values
 
     trajs = p.trajectories
@@ -321,6 +322,8 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
     }
     for i, f in enumerate(FEATURES):
         col[f"theta_true_{f}"] = np.full(m, p.theta[i])
+    for name, v in set_composition(p.theta, p.beta, hyp.thetas, hyp.betas).items():
+        col[name] = np.full(m, v)
     fb = p.fixed_beta if p.fixed_beta is not None else np.nan
     col["fixed_beta"] = np.where(col["condition"] == "fixed_beta", fb, np.nan).astype(np.float64)
     for i, f in enumerate(FEATURES):
@@ -353,6 +356,12 @@ _ID = [
     Column("method", "string", "inference method (`discrete`: the discrete-set belief)"),
     Column("episodes", "int32", "episodes seen, n = 1..N"),
 ]
+#: Table I's factors: how close the truth is to the person's Ψ_k = Θ_k × B.
+SET_COMPOSITION = (
+    Column("theta_k_truth_similarity", "float64", "mean cosine between θ* and the members of Θ_k"),
+    Column("theta_k_diversity", "float64", "mean cosine over the distinct pairs of Θ_k"),
+    Column("beta_set_distance", "float64", "min |β* − b| over the set B"),
+)
 _CONTEXT = [
     Column("n_pairs", "int64", "actions seen in the first n episodes"),
     Column("n_capped", "int32", "episodes among the first n that hit `max_steps` without reaching the goal"),
@@ -363,6 +372,7 @@ _CONTEXT = [
     Column("beta_true", "float64", "β* of the person"),
     Column("group_true", "string", "expertise group of β*"),
     *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm)") for f in FEATURES],
+    *SET_COMPOSITION,
     Column("fixed_beta", "float64", "the β of the Fixed β set (NaN in other conditions)"),
     *[Column(f"fixed_theta_{f}", "float64", f"component `{f}` of the Fixed θ set's θ (NaN elsewhere)")
       for f in FEATURES],
@@ -381,7 +391,7 @@ _ESTIMATES = [
 
 STUDY = Study(
     name="conditions",
-    version=1,
+    version=2,
     description="Sec. VI-A: Full set vs Fixed θ vs Fixed β, in- and out-of-set truths, metrics per episode",
     config_type=ConditionsConfig,
     scales=SCALES,
