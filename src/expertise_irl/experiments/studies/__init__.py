@@ -7,10 +7,11 @@ from ...errors import InputError
 
 def studies() -> dict:
     """Study name -> :class:`~expertise_irl.experiments.engine.Study`."""
+    from .cardinality import STUDY as cardinality
     from .conditions import STUDY as conditions
     from .user_study import STUDIES as user_studies
 
-    return {s.name: s for s in (conditions, *user_studies)}
+    return {s.name: s for s in (conditions, cardinality, *user_studies)}
 
 
 def get_study(name: str):

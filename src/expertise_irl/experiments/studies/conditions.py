@@ -69,11 +69,16 @@ class ConditionsConfig:
     out_of_set_beta_low: float = 0.01
     out_of_set_beta_high: float = 10.0
     model: str = "maxent"  # observation model of the people and of the inference
+    conditions: tuple[str, ...] = CONDITIONS  # which conditions in-set people are scored under
 
     def __post_init__(self) -> None:
         bad = [g for g in self.groups if g not in GROUPS]
         if bad:
             raise InputError(f"unknown expertise group {bad[0]!r} (groups: {', '.join(GROUPS)})")
+        bad = [c for c in self.conditions if c not in CONDITIONS]
+        if bad or "full" not in self.conditions:
+            raise InputError(f"conditions must include 'full' and be among {', '.join(CONDITIONS)}, "
+                             f"got {', '.join(self.conditions)}")
         if self.environments < 1 or self.runs < 1 or not self.ks or min(self.ks) < 2:
             raise InputError("need at least one environment and run, and every k >= 2")
         if self.episodes < 1 or self.low_episodes < 1:
@@ -84,6 +89,10 @@ class ConditionsConfig:
 
     def n_episodes(self, group: str, truth: str) -> int:
         return self.low_episodes if (group == "low" and truth == "in_set") else self.episodes
+
+    def person_conditions(self, truth: str) -> tuple[str, ...]:
+        """The conditions a person is scored under (out-of-set people: the Full set only)."""
+        return tuple(c for c in CONDITIONS if c in self.conditions) if truth == "in_set" else ("full",)
 
     def people(self) -> list[tuple[str, str]]:
         truths = TRUTHS if self.out_of_set else TRUTHS[:1]
@@ -231,10 +240,11 @@ def counts(cfg: ConditionsConfig) -> dict[str, int]:
     n_b = 6
     people = cfg.people()
     n_tasks = cfg.environments * cfg.runs * len(cfg.ks)
-    per_k_ungrouped = sum(len(CONDITIONS) if t == "in_set" else 1 for _, t in people)
-    rows = sum((len(CONDITIONS) if t == "in_set" else 1) * cfg.n_episodes(g, t) for g, t in people)
+    per_k_ungrouped = sum(len(cfg.person_conditions(t)) for _, t in people)
+    rows = sum(len(cfg.person_conditions(t)) * cfg.n_episodes(g, t) for g, t in people)
     hyp_grouped = sum(n_b * k for k in cfg.ks)
-    hyp_ungrouped = sum((n_b * k + n_b + k) if t == "in_set" else n_b * k for k in cfg.ks for _, t in people)
+    sizes = {"full": lambda k: n_b * k, "fixed_theta": lambda k: n_b, "fixed_beta": lambda k: k}
+    hyp_ungrouped = sum(sizes[c](k) for k in cfg.ks for _, t in people for c in cfg.person_conditions(t))
     per_er = cfg.environments * cfg.runs
     return {"tasks": n_tasks, "instances": n_tasks * len(people), "rows": per_er * len(cfg.ks) * rows,
             "set_solves_grouped": n_tasks, "set_solves_ungrouped": n_tasks * per_k_ungrouped,
@@ -280,7 +290,7 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
     lengths = np.array([len(s) for s, _ in eps])
     ends = np.array([mdp.next_state[s[-1], a[-1]] for s, a in eps])
     capped = (lengths >= cfg.max_steps) & ~mdp.terminal[ends]
-    conds = CONDITIONS if p.truth == "in_set" else CONDITIONS[:1]
+    conds = cfg.person_conditions(p.truth)
     g_true = expertise_group(p.beta)
     est: dict[str, list] = {n: [] for n in ("beta_hat", "theta_hat", "p_group_true", "truth_probability",
                                             "entropy", "n_hypotheses")}

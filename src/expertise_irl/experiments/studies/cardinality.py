@@ -1,0 +1,38 @@
+"""The ``cardinality`` study (paper Sec. VI-E, Table III): the discrete set as Ψ_k grows.
+
+The paper's last sensitivity check runs the discrete set with larger hypothesis sets,
+k ∈ {20, 40, 60, 80, 100} preference vectors (|Ψ_k| = 6k), in a single environment, for in-set
+and out-of-set truths, and correlates each metric with the cardinality (Table III). The paper
+gives neither the number of runs nor the episode count; we take 10 runs × 3 expertise groups
+× 2 truth kinds per k at ``paper`` scale (5 runs at ``small``) and 20 episodes, as in Sec. VI-A.
+
+It is the ``conditions`` study's machinery with another config: the people, their seeds
+``(e, r, k, g, t)`` and their rows are exactly those of ``conditions`` for the same
+identity (the Full set only; no Fig. 3 extension, so low-expertise people show 20 episodes),
+so a person with k = 20 in environment 0 is the same person in both sweeps. Table II's
+factors (episodes, |Ψ_k|, number of states) come from ``conditions``' rows.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .conditions import STUDY as CONDITIONS_STUDY
+from .conditions import ConditionsConfig
+
+_BASE = {"environments": 1, "ks": (20, 40, 60, 80, 100), "conditions": ("full",), "low_episodes": 20}
+
+SCALES = {
+    "smoke": ConditionsConfig(**{**_BASE, "ks": (4, 8), "low_episodes": 3}, runs=1, episodes=3,
+                              map_min_size=5, map_max_size=7, max_steps=60),
+    "small": ConditionsConfig(**_BASE, runs=5),
+    "paper": ConditionsConfig(**_BASE, runs=10),
+}
+
+STUDY = dataclasses.replace(
+    CONDITIONS_STUDY,
+    name="cardinality",
+    version=1,
+    description="Sec. VI-E: the discrete set with k = 20..100 preference vectors, in- and out-of-set truths",
+    scales=SCALES,
+)
