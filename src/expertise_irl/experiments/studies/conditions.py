@@ -173,7 +173,6 @@ class Person:
 
 def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str, truth: str) -> Person:
     """Rebuild the person of identity ``(e, r, k, group, truth)`` (bit for bit, in any study)."""
-    from ...demos import Trajectories, simulate
     from ...hypotheses import BETA_PRESETS
     from ...inference.conditions import (
         fixed_beta_set,
@@ -199,13 +198,22 @@ def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str,
         th, b = out_of_set_truth(_grid(cfg.thetas, mdp.n_features), thetas, rng_truth,
                                  beta_range=(cfg.out_of_set_beta_low, cfg.out_of_set_beta_high))
     value, log_policy = solve_padded(mdp, th, b, cfg.model)
+    trajs = simulate_episodes(mdp, log_policy[0], sim_ss, cfg.n_episodes(group, truth), cfg.max_steps)
+    return Person(ident, group, truth, th, b, ft, fb, value[0], trajs)
+
+
+def simulate_episodes(mdp, log_policy, seq: np.random.SeedSequence, n: int, max_steps: int) -> Trajectories:
+    """``n`` episodes of a person with ``log_policy`` [S, A], episode j seeded by ``seq``'s j-th child
+    (so the first n episodes are the same whatever the total)."""
+    from ...demos import Trajectories, simulate
+
     parts = []
-    for j, ss in enumerate(sim_ss.spawn(cfg.n_episodes(group, truth))):
-        tr = simulate(mdp, None, None, 1, np.random.default_rng(ss), max_steps=cfg.max_steps,
-                      log_policy=log_policy[0])
+    for j, ss in enumerate(seq.spawn(n)):
+        tr = simulate(mdp, None, None, 1, np.random.default_rng(ss), max_steps=max_steps,
+                      log_policy=log_policy)
         parts.append((np.full(len(tr), j), tr.step, tr.state, tr.action))
     ep, step, state, action = (np.concatenate(c) for c in zip(*parts, strict=True))
-    return Person(ident, group, truth, th, b, ft, fb, value[0], Trajectories(ep, step, state, action))
+    return Trajectories(ep, step, state, action)
 
 
 # ------------------------------------------------------------------------------ tasks

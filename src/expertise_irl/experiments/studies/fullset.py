@@ -1,0 +1,242 @@
+"""The ``fullset`` study (beyond the paper): does the whole ``paper-sim`` set close the out-of-set gap?
+
+The paper's discrete set degrades when the truth is not among its hypotheses (Sec. VI-D:
+≈ 3× the β distance and ≈ 6× the regret), and it draws Ψ_k = Θ_k × B small, with k ≤ 20
+(k ≤ 100 in Sec. VI-E), because "if all vectors in Θ were used, Ψ would include more than
+15,000 hypotheses" (Sec. V-D). Here every person is scored twice on the same episodes:
+
+- ``theta_k``: their own Ψ_k, as in the source study;
+- ``full``: all of Θ × B (3,031 unique θ directions × 6 β = 18,186 hypotheses).
+
+The people are those of the ``conditions`` study (its out-of-set people and, as the in-set
+reference, its in-set people; the Full-set condition only) and of the ``optimisation`` study
+(its instances: θ* ∉ Θ_20, β* ~ U(0.01, 5)), at the scale named by ``source_scale`` and the same
+seed, rebuilt bit for bit from their identities (same truths, same episodes), so their
+``theta_k`` rows equal the source study's discrete-set rows up to the solver's tolerance (the
+full set is solved in other batches than Ψ_k). A θ* drawn from Θ \\ Θ_k is inside the full
+set; a β* drawn from U(0.01, 10) is not (B has six values), so the full set can close the θ
+part of the gap only.
+
+Grouping. One task per environment: it solves the full set once on that map (the ``conditions``
+and ``optimisation`` maps are the same for the same sizes; a map they do not share is solved
+once more) and scores every person on it from that one solve, including their Ψ_k, whose rows
+are a subset of the full set's.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import InputError
+from ..engine import Column, Study, TaskSpec
+from . import conditions as cond
+from . import optimisation as opt
+from .conditions import FEATURES
+
+SOURCES = ("conditions", "optimisation")
+SETS = ("theta_k", "full")
+
+
+@dataclass(frozen=True)
+class FullsetConfig:
+    """Which people (the source studies at ``source_scale``) and which full set."""
+
+    source_scale: str = "paper"
+    sources: tuple[str, ...] = SOURCES
+    in_set: bool = True  # also score conditions' in-set people (the reference of the gap)
+    thetas: str = "paper-sim"
+    betas: str = "paper-sim"
+
+    def __post_init__(self) -> None:
+        bad = [s for s in self.sources if s not in SOURCES]
+        if bad or not self.sources:
+            raise InputError(f"sources must be among {', '.join(SOURCES)}, got {', '.join(self.sources)}")
+        if self.source_scale not in cond.SCALES or self.source_scale not in opt.SCALES:
+            raise InputError(f"source_scale must be one of {', '.join(cond.SCALES)}, "
+                             f"got {self.source_scale!r}")
+
+    def conditions(self) -> cond.ConditionsConfig:
+        return cond.SCALES[self.source_scale]
+
+    def optimisation(self) -> opt.OptimisationConfig:
+        return opt.SCALES[self.source_scale]
+
+    def environments(self) -> list[int]:
+        n = 0
+        if "conditions" in self.sources:
+            n = max(n, self.conditions().environments)
+        if "optimisation" in self.sources:
+            n = max(n, self.optimisation().environments)
+        return list(range(n))
+
+
+SCALES = {s: FullsetConfig(source_scale=s) for s in ("smoke", "small", "paper")}
+
+
+def _people(cfg: FullsetConfig, seed: int, e: int):
+    """``(source, map config, identity dict, truth, Θ_k, θ*, β*, value, trajectories)`` on map e."""
+    if "conditions" in cfg.sources and e < cfg.conditions().environments:
+        c = cfg.conditions()
+        truths = ("in_set", "out_of_set") if cfg.in_set else ("out_of_set",)
+        for k in c.ks:
+            for r in range(c.runs):
+                thetas = cond.theta_k(c, seed, e, r, k)
+                for g in c.groups:
+                    for t in truths:
+                        p = cond.person(c, seed, e, r, k, g, t)
+                        ident = {"run": r, "k": k, "group": g, "instance": -1}
+                        yield "conditions", c, ident, t, thetas, p.theta, p.beta, p.value, p.trajectories
+    if "optimisation" in cfg.sources and e < cfg.optimisation().environments:
+        o = cfg.optimisation()
+        for i in range(o.instances):
+            inst = opt.instance(o, seed, e, i)
+            ident = {"run": -1, "k": o.k, "group": "", "instance": i}
+            yield ("optimisation", o, ident, "out_of_set", inst.thetas, inst.theta, inst.beta, inst.value,
+                   inst.trajectories)
+
+
+def tasks(cfg: FullsetConfig) -> list[TaskSpec]:
+    out = []
+    for e in cfg.environments():
+        side = 20.0 if cfg.source_scale != "smoke" else 6.0
+        out.append(TaskSpec(f"e{e:03d}", {"environment": e}, 10.0 + 18186 * 0.75 * side * side * 4e-6))
+    return out
+
+
+def counts(cfg: FullsetConfig) -> dict[str, int]:
+    rows = people = 0
+    if "conditions" in cfg.sources:
+        c = cfg.conditions()
+        n = c.environments * c.runs * len(c.ks)
+        truths = ("in_set", "out_of_set") if cfg.in_set else ("out_of_set",)
+        people += n * len(c.groups) * len(truths)
+        rows += n * sum(c.n_episodes(g, t) for g in c.groups for t in truths) * len(SETS)
+    if "optimisation" in cfg.sources:
+        o = cfg.optimisation()
+        people += o.environments * o.instances
+        rows += o.environments * o.instances * o.episodes * len(SETS)
+    n_maps = len(cfg.environments())
+    return {"tasks": n_maps, "instances": people, "rows": rows, "set_solves_grouped": n_maps,
+            "set_solves_ungrouped": people}
+
+
+def run_task(cfg: FullsetConfig, seed: int, params: dict) -> tuple[dict[str, np.ndarray], dict]:
+    """Solve the full set once per map of environment e and score every person on it."""
+    from ...hypotheses import BETA_PRESETS, HypothesisSet
+    from ...inference.belief import DiscreteBelief
+    from ...planning import solve
+
+    e = int(params["environment"])
+    solved: dict[tuple[int, int], tuple] = {}  # (min size, max size) -> (zm, mdp, full, belief, time)
+    cols: dict[str, list] = {}
+    n_people = 0
+    for source, scfg, ident, truth, thetas, theta, beta, value, trajs in _people(cfg, seed, e):
+        key = (scfg.map_min_size, scfg.map_max_size)
+        if key not in solved:
+            zm, mdp = cond.environment(scfg, seed, e)
+            full = HypothesisSet(cond._grid(cfg.thetas, mdp.n_features), BETA_PRESETS[cfg.betas])
+            t0 = time.perf_counter()
+            log_policy = solve(mdp, full.theta, full.beta, model=scfg.model).log_policy  # no padding
+            spent = time.perf_counter() - t0
+            solved[key] = (zm, mdp, full, DiscreteBelief.from_log_policy(full, log_policy), spent)
+        zm, mdp, full, b_full, spent = solved[key]
+        own = HypothesisSet(thetas, BETA_PRESETS[cfg.betas])
+        rows = np.array([full.index(t, b) for t, b in zip(own.theta, own.beta, strict=True)])
+        b_own = DiscreteBelief.from_log_policy(own, b_full.log_policy[rows])
+        for s, b0 in zip(SETS, (b_own, b_full), strict=True):
+            part = _score(mdp, scfg, b0, trajs, theta, beta, value)
+            m = len(part["beta_hat"])
+            part.update({
+                "seed": np.full(m, seed), "environment": np.full(m, e),
+                "source": np.full(m, source, dtype=object), "truth": np.full(m, truth, dtype=object),
+                "run": np.full(m, ident["run"]), "k": np.full(m, ident["k"]),
+                "group": np.full(m, ident["group"], dtype=object), "instance": np.full(m, ident["instance"]),
+                "set": np.full(m, s, dtype=object), "n_states": np.full(m, mdp.n_states),
+                "n_hypotheses": np.full(m, len(b0.hypotheses)), "set_solve_time_s": np.full(m, spent),
+            })
+            for name, v in part.items():
+                cols.setdefault(name, []).append(v)
+        n_people += 1
+    columns = {n: np.concatenate(v) for n, v in cols.items()}
+    return columns, {"set_solve_time_s": sum(v[-1] for v in solved.values()), "set_solves": len(solved),
+                     "hypotheses_solved": sum(len(v[2]) for v in solved.values()), "people": n_people}
+
+
+def _score(mdp, scfg, belief, trajs, theta, beta, value) -> dict[str, np.ndarray]:
+    """Rows for every episode count 1..N of one person under one set (one pass)."""
+    from ...hypotheses import expertise_group
+    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
+
+    eps = trajs.episodes()
+    lengths = np.array([len(s) for s, _ in eps])
+    ends = np.array([mdp.next_state[s[-1], a[-1]] for s, a in eps])
+    capped = (lengths >= scfg.max_steps) & ~mdp.terminal[ends]
+    truth_idx = belief.hypotheses.index(theta, beta)
+    b, beta_hat, theta_hat, p_truth = belief, [], [], []
+    for n, (s, a) in enumerate(eps):
+        b = b.update_trajectory(s, a, episode=n)
+        beta_hat.append(b.mean_beta)
+        theta_hat.append(b.mean_theta)
+        p_truth.append(np.nan if truth_idx is None else float(b.probabilities[truth_idx]))
+    theta_hat = np.array(theta_hat)
+    uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
+    v_hat, _ = cond.solve_padded(mdp, uniq, np.full(len(uniq), beta), scfg.model)
+    N = len(eps)
+    col = {
+        "episodes": np.arange(1, N + 1), "n_pairs": np.cumsum(lengths), "n_capped": np.cumsum(capped),
+        "beta_true": np.full(N, beta), "group_true": np.full(N, expertise_group(beta), dtype=object),
+        "beta_hat": np.array(beta_hat),
+    }
+    for i, f in enumerate(FEATURES):
+        col[f"theta_true_{f}"] = np.full(N, theta[i])
+        col[f"theta_hat_{f}"] = theta_hat[:, i]
+    col["expertise_distance"] = np.array([expertise_distance(beta, x) for x in beta_hat])
+    col["cosine_similarity"] = np.array([cosine_similarity(theta, t) for t in theta_hat])
+    col["policy_regret"] = np.array([regret_from_values(value, v_hat[j], mdp.terminal) for j in inv.ravel()])
+    col["truth_probability"] = np.array(p_truth)
+    return col
+
+
+COLUMNS = (
+    Column("seed", "int64", "the sweep's seed (`--seed`), shared with the source studies"),
+    Column("environment", "int32", "environment index e (map `(e,)`)"),
+    Column("source", "string", "`conditions` or `optimisation`: the study whose person this is"),
+    Column("truth", "string", "`in_set` (θ*, β*) ∈ Ψ_k, or `out_of_set`"),
+    Column("run", "int32", "conditions' run r (−1 for optimisation)"),
+    Column("k", "int32", "size of the person's Θ_k"),
+    Column("group", "string", "conditions' expertise-group slot (empty for optimisation)"),
+    Column("instance", "int32", "optimisation's instance i (−1 for conditions)"),
+    Column("set", "string", "`theta_k` (the person's own Ψ_k) or `full` (all of the paper-sim Θ × B)"),
+    Column("episodes", "int32", "episodes seen, n = 1..N"),
+    Column("n_pairs", "int64", "actions seen in the first n episodes"),
+    Column("n_capped", "int32", "episodes among the first n that hit `max_steps` without reaching the goal"),
+    Column("n_states", "int32", "states of the MDP"),
+    Column("n_hypotheses", "int32", "hypotheses of the set"),
+    Column("beta_true", "float64", "β* of the person"),
+    Column("group_true", "string", "expertise group of β*"),
+    *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm)") for f in FEATURES],
+    Column("beta_hat", "float64", "β̂ = E[β] after n episodes"),
+    *[Column(f"theta_hat_{f}", "float64", f"θ̂ = E[θ] component `{f}`") for f in FEATURES],
+    Column("expertise_distance", "float64", "|β* − β̂|"),
+    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
+    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
+    Column("truth_probability", "float64", "posterior probability of (θ*, β*) (NaN if not in the set)"),
+    Column("set_solve_time_s", "float64", "wall time of the full set's solve on this map (one per map)"),
+)
+
+STUDY = Study(
+    name="fullset",
+    version=1,
+    description="beyond the paper: conditions' and optimisation's people scored with all 18,186 paper-sim "
+                "hypotheses vs their Ψ_k",
+    config_type=FullsetConfig,
+    scales=SCALES,
+    tasks=tasks,
+    run_task=run_task,
+    columns=COLUMNS,
+    sort_by=("environment", "source", "truth", "run", "k", "group", "instance", "set", "episodes"),
+    counts=counts,
+)

@@ -1,0 +1,115 @@
+"""The ``optimisation`` study (Sec. VII): protocol, the paper's prior, and rows equal to direct calls."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from expertise_irl.errors import InputError
+from expertise_irl.experiments import load
+from expertise_irl.experiments.engine import run
+from expertise_irl.experiments.studies import get_study
+from expertise_irl.experiments.studies.conditions import FEATURES, environment
+from expertise_irl.experiments.studies.optimisation import METHODS, SCALES, OptimisationConfig, instance
+
+STUDY = get_study("optimisation")
+SMOKE = SCALES["smoke"]
+
+
+def test_paper_scale_follows_sec_vii_a():
+    p = SCALES["paper"]
+    assert (p.environments, p.instances, p.episode_counts, p.k) == (5, 20, (10, 20, 30, 40), 20)
+    assert (p.beta_low, p.beta_high, p.birl_iterations, p.prior) == (0.01, 5.0, 1000, "paper")
+    assert p.methods == METHODS and p.nuts_instances == -1
+    assert STUDY.counts(p)["rows"] == 100 * 4 * 5
+    small = SCALES["small"]
+    assert small.prior == "paper" and small.birl_iterations == 1000 and small.nuts_instances >= 1
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory) -> pd.DataFrame:
+    out = tmp_path_factory.mktemp("opt") / "sweep"
+    summary = run(STUDY, out, scale="smoke", seed=0, workers=1)
+    assert summary.failed == 0 and summary.ran == len(STUDY.tasks(SMOKE))
+    return load(out)
+
+
+def test_every_method_at_every_count_and_nuts_on_its_subset(smoke):
+    assert len(smoke) == STUDY.counts(SMOKE)["rows"]
+    for i in range(SMOKE.instances):
+        got = smoke[smoke.instance == i].groupby("method")["episodes"].apply(sorted).to_dict()
+        want = [m for m in METHODS if m != "nuts" or i < SMOKE.nuts_instances]
+        assert sorted(got) == sorted(want)
+        assert all(v == list(SMOKE.episode_counts) for v in got.values())
+    cont = smoke[smoke.method != "discrete"]
+    assert (cont["prior"] == "paper").all() and cont["prior_text"].str.contains("5.005").all()
+    assert (smoke[smoke.method == "discrete"]["n_hypotheses"] == SMOKE.k * 6).all()
+    assert (cont["n_hypotheses"] == 0).all()
+    assert (smoke["wall_time_s"] > 0).all()
+    assert smoke.loc[smoke.method.str.startswith("birl"), "acceptance_rate"].between(0, 1).all()
+    assert smoke.loc[smoke.method == "nuts", "divergences"].notna().all()
+    assert smoke.loc[~smoke.method.isin(["nuts"]), "divergences"].isna().all()
+
+
+def test_truths_are_out_of_the_set_and_beta_in_range(smoke):
+    for i in range(SMOKE.instances):
+        inst = instance(SMOKE, 0, 0, i)
+        assert not np.isclose(inst.thetas, inst.theta, atol=1e-9).all(axis=1).any()
+        assert SMOKE.beta_low <= inst.beta <= SMOKE.beta_high
+        rows = smoke[smoke.instance == i]
+        np.testing.assert_array_equal(rows[[f"theta_true_{f}" for f in FEATURES]].to_numpy()[0], inst.theta)
+        assert (rows["beta_set_distance"] > 0).all()
+        assert (rows["n_pairs"] == [len(inst.trajectories.first(n)) for n in rows["episodes"]]).all()
+
+
+def _row(df, i, method, n):
+    r = df[(df.instance == i) & (df.method == method) & (df.episodes == n)]
+    assert len(r) == 1
+    return r.iloc[0]
+
+
+def test_rows_equal_direct_calls_with_the_papers_prior(smoke):
+    """Algorithm 1 (box, as printed), MAP and the set, called directly on the same episodes."""
+    from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet
+    from expertise_irl.inference.belief import DiscreteBelief
+    from expertise_irl.inference.birl import extended_birl
+    from expertise_irl.inference.gradient import map_estimate
+
+    _, mdp = environment(SMOKE, 0, 0)
+    inst = instance(SMOKE, 0, 0, 1)
+    n = SMOKE.episode_counts[-1]
+    tr = inst.trajectories.first(n)
+    box = extended_birl(mdp, tr, n_iter=SMOKE.birl_iterations, variant="box", prior="paper",
+                        rng=np.random.default_rng([inst.method_seeds["birl_box"], n]))
+    row = _row(smoke, 1, "birl_box", n)
+    assert row["beta_hat"] == box.mean_beta
+    np.testing.assert_array_equal(row[[f"theta_hat_{f}" for f in FEATURES]].to_numpy(float), box.mean_theta)
+    m = map_estimate(mdp, tr, n_starts=SMOKE.map_starts, prior="paper",
+                     rng=np.random.default_rng([inst.method_seeds["map"], n]))
+    assert _row(smoke, 1, "map", n)["beta_hat"] == pytest.approx(m.beta, rel=1e-9)
+    # The prior is what the row says it is: under the default prior the mode moves.
+    other = map_estimate(mdp, tr, n_starts=SMOKE.map_starts, prior="log-uniform",
+                         rng=np.random.default_rng([inst.method_seeds["map"], n]))
+    assert abs(other.beta - m.beta) > 0.1
+    b = DiscreteBelief.from_mdp(mdp, HypothesisSet(inst.thetas, BETA_PRESETS["paper-sim"])).update(tr)
+    assert _row(smoke, 1, "discrete", n)["beta_hat"] == pytest.approx(b.mean_beta, abs=1e-9)
+
+
+def test_first_episodes_do_not_depend_on_the_maximum():
+    longer = dataclasses.replace(SMOKE, episode_counts=(2, 6))
+    a, b = instance(SMOKE, 0, 0, 0), instance(longer, 0, 0, 0)
+    assert a.beta == b.beta and np.array_equal(a.thetas, b.thetas)
+    t4 = b.trajectories.first(4)
+    assert np.array_equal(a.trajectories.state, t4.state) and np.array_equal(a.trajectories.action, t4.action)
+
+
+def test_bad_configs_are_refused():
+    with pytest.raises(InputError, match="methods must be among"):
+        OptimisationConfig(methods=("discrete", "gibbs"))
+    with pytest.raises(InputError, match="beta_low < beta_high"):
+        OptimisationConfig(beta_low=5.0, beta_high=1.0)
+    with pytest.raises(InputError, match="prior must be one of"):
+        OptimisationConfig(prior="flat")
