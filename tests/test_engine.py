@@ -244,10 +244,18 @@ def test_condition_rows_obey_their_definitions(reference):
     assert ((df["theta_k_diversity"] > 0) & (df["theta_k_diversity"] < 1)).all()
 
 
-def _documented_columns() -> list[tuple[str, str]]:
+def _documented_columns(study: str = "conditions") -> list[tuple[str, str]]:
     text = DOCS.read_text()
-    section = text.split("### `conditions` rows", 1)[1].split("\n### ", 1)[0].split("\n## ", 1)[0]
+    section = text.split(f"### `{study}` rows", 1)[1].split("\n### ", 1)[0].split("\n## ", 1)[0]
     return re.findall(r"^\| `([a-z_0-9]+)` \| `([a-z0-9]+)` \|", section, flags=re.M)
+
+
+@pytest.mark.parametrize("name", ["optimisation", "fullset"])
+def test_other_schemas_match_the_documentation(name):
+    """The engine refuses rows that break a study's schema; the docs must list that schema."""
+    assert _documented_columns(name) == [(c.name, c.type) for c in get_study(name).columns]
+    # cardinality's rows are exactly conditions' (documented once).
+    assert get_study("cardinality").columns == STUDY.columns
 
 
 def test_schema_matches_the_documentation(reference):
