@@ -1,0 +1,77 @@
+"""Writing a report into its folder, never over a user's files.
+
+A report folder holds :data:`MARKER`, listing the files the report wrote. A folder that exists,
+is not empty and has no marker is refused; a previous report is replaced (its listed files are
+removed first; anything else in the folder is left alone).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from ...errors import InputError
+from .claims import claims_frame
+from .figures import save
+from .markdown import render
+from .parts import Report
+
+MARKER = ".expertise-irl-report.json"
+
+
+def prepare(out: Path) -> None:
+    """Make ``out`` ready for a report: create it, or clear the previous report in it."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory; use another --out")
+    if out.is_dir() and any(out.iterdir()):
+        marker = out / MARKER
+        if not marker.is_file():
+            raise InputError(f"{out}: directory is not empty and holds no report (no {MARKER}); "
+                             "refusing to overwrite, use another --out")
+        try:
+            listed = json.loads(marker.read_text()).get("files", [])
+        except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+            raise InputError(f"{marker}: unreadable report marker; remove the folder or use another "
+                             "--out") from None
+        root = out.resolve()
+        for rel in listed:
+            p = (out / rel).resolve()
+            if root in p.parents and p.is_file():
+                p.unlink()
+        for d in ("figures", "tables"):
+            sub = out / d
+            if sub.is_dir() and not any(sub.iterdir()):
+                sub.rmdir()
+    out.mkdir(parents=True, exist_ok=True)
+
+
+def _marker(out: Path, study: str, files: list[str]) -> None:
+    record = {"written_by": "expertise-irl experiment report", "study": study,
+              "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "files": sorted(files)}
+    (out / MARKER).write_text(json.dumps(record, indent=2) + "\n")
+
+
+def write(report: Report, sweep, out: Path) -> Path:
+    """Write report.md, figures/, tables/ and claims.csv into ``out``; the path of report.md."""
+    out = Path(out)
+    prepare(out)
+    files: list[str] = []
+    _marker(out, report.study, files)
+    for f in report.figures:
+        files += [str(p.relative_to(out)) for p in save(f.fig, out / "figures", f.name)]
+        f.fig.clear()
+    tables = [*report.tables, *(s.table for s in report.sections if s.table is not None)]
+    if tables:
+        (out / "tables").mkdir(exist_ok=True)
+    for t in tables:
+        path = out / "tables" / f"{t.name}.csv"
+        t.data.to_csv(path, index=False)
+        files.append(str(path.relative_to(out)))
+    claims_frame(report.claims).to_csv(out / "claims.csv", index=False)
+    files.append("claims.csv")
+    path = out / "report.md"
+    path.write_text(render(report, sweep))
+    files.append("report.md")
+    _marker(out, report.study, files)
+    return path
