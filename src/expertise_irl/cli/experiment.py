@@ -127,3 +127,19 @@ def list_cmd() -> None:
     from ._app import out as console
 
     console.print(table)
+
+
+@experiment_app.command("report")
+@handles_errors
+def report_cmd(
+    out_dir: Annotated[Path, typer.Argument(metavar="DIR", help="Sweep directory.")],
+    out: Annotated[Path | None, typer.Option("--out", help="Report folder (default DIR/report); a "
+                                             "previous report there is replaced, any other non-empty "
+                                             "folder is refused.")] = None,
+) -> None:
+    """Figures, Pearson tables and the paper's claims with computed verdicts, from the sweep's Parquet."""
+    from ..experiments.report import build_report
+
+    path = build_report(out_dir, out, on_warning=lambda w: err.print(f"warning: {w}", markup=False,
+                                                                      highlight=False, soft_wrap=True))
+    _say(f"report written to {path} (figures, tables and claims.csv beside it)")
