@@ -333,7 +333,7 @@ def test_fullset_report_from_contract_rows(tmp_path, truth_column):
         out_f = at.loc[(at["truth"] == "out_of_set") & (at["set"] == "full"), "policy_regret"].mean()
         in_k = at.loc[(at["truth"] == "in_set") & (at["set"] == "theta_k"), "policy_regret"].mean()
         assert row["share_closed"] == pytest.approx(1 - (out_f - in_k) / (out_k - in_k))
-        assert "For the conditions study's out-of-set people the full set" in md
+        assert "For the conditions study's out-of-set people, own Ψ_k → full set: " in md
     else:
         assert set(means["truth"]) == {"out_of_set"}  # derived from truth_probability
         assert "No in-set people" in md

@@ -7,7 +7,7 @@ from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
 from .conditions import PERSON
 from .parts import Figure, Report
-from .stats import METRIC_AXES, METRICS
+from .stats import METRIC_AXES, METRIC_RANGE, METRICS
 from .sweep import require_columns
 from .tables import PearsonRow, means_table, pearson_cell, pearson_table
 
@@ -19,10 +19,14 @@ TRUTH_COLORS = {"in_set": F.GREEN, "out_of_set": F.ORANGE}
 def figure(at_n, n: int) -> Figure:
     fig, axes = F.new_figure(3, width=3.4, height=3.4)
     truths = [t for t in TRUTHS if (at_n["truth"] == t).any()]
-    people = {t: len(at_n[at_n["truth"] == t].drop_duplicates(PERSON)) for t in truths}
-    labels = {t: f"{TRUTHS[t].split(' (')[0].lower()} (n = {people[t]})" for t in truths}
+    def per_k(t):
+        counts = sorted(set(at_n[at_n["truth"] == t].drop_duplicates(PERSON).groupby("k").size()))
+        return str(counts[0]) if len(counts) == 1 else f"{counts[0]}–{counts[-1]}"
+
+    labels = {t: f"{TRUTHS[t].split(' (')[0].lower()} (n = {per_k(t)} per k)" for t in truths}
     for ax, metric in zip(axes, ["policy_regret", "cosine_similarity", "expertise_distance"], strict=True):
-        F.bands(ax, at_n, "k", metric, "truth", truths, TRUTH_COLORS, labels, legend=False)
+        F.bands(ax, at_n, "k", metric, "truth", truths, TRUTH_COLORS, labels, legend=False,
+                bounds=METRIC_RANGE[metric])
         ax.set_xlabel("k (|Ψ_k| = 6k)")
         ax.set_ylabel(METRIC_AXES[metric])
         ax.set_xticks(sorted(at_n["k"].unique()))
@@ -30,8 +34,7 @@ def figure(at_n, n: int) -> Figure:
     fig.suptitle(f"Metrics vs k after {n} episodes, Full set, one environment", fontsize=11)
     return Figure("fig_cardinality", "Metrics vs the cardinality of Ψ_k",
                   f"Full-set rows at episodes = {n}, in-set and out-of-set people, all runs and expertise "
-                  "groups combined; lines are means per k, bands 95% confidence intervals (Student t); n = "
-                  "people per k.", fig)
+                  f"groups combined; lines are means per k, bands {F.CI_TEXT}; n = people at each k.", fig)
 
 
 def claims(at_n, n: int) -> list[C.ClaimResult]:

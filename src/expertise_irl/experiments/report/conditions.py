@@ -8,7 +8,7 @@ from . import claims as C
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
 from .parts import Figure, Report
-from .stats import GROUPS, METRIC_AXES, METRICS, paired
+from .stats import GROUPS, METRIC_AXES, METRIC_RANGE, METRICS, paired
 from .sweep import require_columns
 from .tables import factor_rows, means_table, pearson_table
 
@@ -112,14 +112,14 @@ def fig6(at_k, n: int, k: int) -> Figure:
     for ax, metric in zip(axes, ["policy_regret", "cosine_similarity", "expertise_distance"], strict=True):
         series = {t: {truths[t]: at_k.loc[at_k["truth"] == t, metric]} for t in truths}
         F.ci_bars(ax, list(truths.values()), series, {"in_set": F.GREEN, "out_of_set": F.ORANGE},
-                  truths, dodge=False)
+                  truths, dodge=False, bounds=METRIC_RANGE[metric])
         ax.set_ylabel(METRIC_AXES[metric])
     counts = {t: _people(at_k[at_k["truth"] == t]) for t in truths}
     fig.suptitle(f"Fig. 6: in vs out of set, Full set, k = {k}, {n} episodes "
                  f"(n = {counts['in_set']} in / {counts['out_of_set']} out)", fontsize=11)
     return Figure("fig6", "Fig. 6: in-set vs out-of-set truths",
                   f"Full-set rows with k = {k} (the largest k) at episodes = {n}; bars are means over all "
-                  "expertise groups and environments, error bars 95% confidence intervals (Student t).", fig)
+                  f"expertise groups and environments, error bars {F.CI_TEXT}.", fig)
 
 
 def fig7(full_in, n: int) -> Figure:
@@ -129,14 +129,14 @@ def fig7(full_in, n: int) -> Figure:
     for ax, metric in zip(axes, ["policy_regret", "cosine_similarity", "expertise_distance"], strict=True):
         log = metric == "policy_regret" and F.needs_log(full_in.groupby("episodes")[metric].mean())
         F.bands(ax, full_in, "episodes", metric, "group_true", groups, F.GROUP_COLORS, labels, log=log,
-                legend=False)
+                legend=False, bounds=METRIC_RANGE[metric])
         ax.set_xlabel("episodes seen")
         ax.set_ylabel(METRIC_AXES[metric] + (" (log scale)" if log else ""))
     F.figure_legend(fig, F.lines(groups, F.GROUP_COLORS, labels))
     fig.suptitle(f"Fig. 7: metrics vs episodes 1..{n}, in-set, Full set, by expertise group", fontsize=11)
     return Figure("fig7", "Fig. 7: metrics vs number of episodes",
                   f"In-set Full-set rows at episodes 1..{n}, all environments, runs and k combined; lines "
-                  "are means per expertise group of β*, bands 95% confidence intervals (Student t).", fig)
+                  f"are means per expertise group of β*, bands {F.CI_TEXT}.", fig)
 
 
 # -------------------------------------------------------------------------------- claims

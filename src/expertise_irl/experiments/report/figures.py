@@ -13,6 +13,8 @@ import numpy as np
 
 from .stats import mean_ci
 
+#: How captions name the intervals drawn.
+CI_TEXT = "95% confidence intervals (Student t, clipped to the metric's range)"
 #: Regret values below this are drawn at it on log axes (regrets of 1e-17 are rounding noise).
 LOG_FLOOR = 1e-6
 GREEN, ORANGE, BLUE, PURPLE, GREY, RED = "#2a9d3f", "#f28e2b", "#4e79a7", "#9467bd", "#7f7f7f", "#d62728"
@@ -110,10 +112,12 @@ def figure_legend(fig, handles) -> None:
 
 
 def ci_bars(ax, categories: list[str], series: dict[str, dict], colors: dict[str, str],
-            labels: dict[str, str], *, log: bool = False, dodge: bool = True) -> None:
+            labels: dict[str, str], *, log: bool = False, dodge: bool = True,
+            bounds: tuple[float, float] = (-np.inf, np.inf)) -> None:
     """Bars of means with 95% CIs: ``series[hue][category]`` -> values; one bar per (category, hue).
 
     ``dodge=False`` puts every hue at its category's centre (for hues that each fill one category).
+    Error bars are clipped to ``bounds``, the range the metric can take.
     """
     hues = list(series)
     width = 0.8 / max(len(hues), 1) if dodge else 0.6
@@ -127,9 +131,9 @@ def ci_bars(ax, categories: list[str], series: dict[str, dict], colors: dict[str
             xs.append(i + (j - (len(hues) - 1) / 2) * width if dodge else i)
             ms.append(ci.mean)
             half = 0.0 if not np.isfinite(ci.half) else ci.half
-            low = min(half, ci.mean - LOG_FLOOR) if log else half  # a log axis cannot show <= 0
-            err[0].append(max(low, 0.0))
-            err[1].append(half)
+            floor = max(bounds[0], LOG_FLOOR) if log else bounds[0]  # a log axis cannot show <= 0
+            err[0].append(max(min(half, ci.mean - floor), 0.0))
+            err[1].append(max(min(half, bounds[1] - ci.mean), 0.0))
         ax.bar(xs, ms, width * 0.9, yerr=err, color=colors[h], edgecolor="black", lw=0.6,
                capsize=3, label=labels[h])
     ax.set_xticks(range(len(categories)), categories)
@@ -141,8 +145,9 @@ def ci_bars(ax, categories: list[str], series: dict[str, dict], colors: dict[str
 
 
 def bands(ax, frame, x: str, y: str, hue: str, order: list[str], colors: dict[str, str],
-          labels: dict[str, str], *, log: bool = False, legend: bool = True) -> None:
-    """Mean of ``y`` against ``x`` for each ``hue`` with a shaded 95% CI band."""
+          labels: dict[str, str], *, log: bool = False, legend: bool = True,
+          bounds: tuple[float, float] = (-np.inf, np.inf)) -> None:
+    """Mean of ``y`` against ``x`` for each ``hue`` with a shaded 95% CI band (clipped to ``bounds``)."""
     for h in order:
         sub = frame[frame[hue] == h]
         if not len(sub):
@@ -155,6 +160,7 @@ def bands(ax, frame, x: str, y: str, hue: str, order: list[str], colors: dict[st
             lo.append(ci.low if np.isfinite(ci.low) else ci.mean)
             hi.append(ci.high if np.isfinite(ci.high) else ci.mean)
         ms, lo, hi = (np.asarray(a, dtype=np.float64) for a in (ms, lo, hi))
+        lo, hi = np.maximum(lo, bounds[0]), np.minimum(hi, bounds[1])
         if log:
             ms, lo, hi = (np.maximum(a, LOG_FLOOR) for a in (ms, lo, hi))
         ax.plot(xs, ms, color=colors[h], label=labels[h], marker="o", ms=3, lw=1.5)

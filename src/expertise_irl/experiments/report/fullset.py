@@ -7,7 +7,7 @@ import numpy as np
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
 from .parts import Figure, Report, Table
-from .stats import HIGHER_IS_BETTER, METRIC_AXES, METRICS, fmt, mean_ci
+from .stats import HIGHER_IS_BETTER, METRIC_AXES, METRIC_RANGE, METRICS, fmt, mean_ci
 from .sweep import require_columns
 from .tables import means_table
 
@@ -21,10 +21,12 @@ SETS = {"theta_k": "own Ψ_k", "full": "full set"}
 SET_COLORS = {"theta_k": F.GREEN, "full": F.ORANGE}
 TRUTH_LABELS = {"in_set": "in-set", "out_of_set": "out-of-set"}
 GAP_RULE = ("Gap rule: the out-of-set gap of a metric is the out-of-set people's mean under their own "
-            "Ψ_k minus the in-set people's mean under theirs (the reference, with its 95% CI). The full set "
-            "*closes* it if the out-of-set mean under the full set is at least as good as the reference's "
-            "95% CI bound on the worse side; *narrows* it if it is better than under Ψ_k but not that good; "
-            "otherwise it does *not narrow* it. Share closed = 1 − (full-set gap / Ψ_k gap).")
+            "Ψ_k minus the in-set people's mean under theirs (the reference, with its 95% CI). If the "
+            "out-of-set mean under Ψ_k is already as good as the reference's 95% CI bound on the worse "
+            "side there is *no gap* (beyond the in-set CI); otherwise the full set *closes* it if the "
+            "out-of-set mean under the full set is that good; *narrows* it if it is better than under "
+            "Ψ_k but not that good; otherwise it does *not narrow* it. Share closed = 1 − (full-set gap / "
+            "Ψ_k gap).")
 
 
 def with_truth(rows):
@@ -40,9 +42,16 @@ def with_truth(rows):
     return rows.merge(truth, on=SLOT, how="left")
 
 
+def source_episodes(rows) -> dict[str, int]:
+    """Each source's largest episode count that all its people reach (conditions' in-set low-expertise
+    people may show more episodes than the rest)."""
+    per_person = rows.groupby(PERSON, observed=True)["episodes"].max().reset_index()
+    return {str(s): int(v) for s, v in per_person.groupby("source")["episodes"].min().items()}
+
+
 def at_max(rows):
-    """Each source's rows at that source's largest episode count."""
-    top = rows.groupby("source")["episodes"].transform("max")
+    """Each source's rows at that source's :func:`source_episodes`."""
+    top = rows["source"].map(source_episodes(rows))
     return rows[rows["episodes"] == top]
 
 
@@ -60,18 +69,19 @@ def figure(at) -> Figure:
         series = {st: {name: at.loc[(at["source"] == s) & (at["truth"] == t) & (at["set"] == st), metric]
                        for name, (s, t) in zip(names, cases, strict=True)} for st in SETS}
         log = metric == "policy_regret" and F.needs_log(at.groupby(["source", "truth", "set"])[metric].mean())
-        F.ci_bars(ax, names, series, SET_COLORS, SETS, log=log)
+        F.ci_bars(ax, names, series, SET_COLORS, SETS, log=log, bounds=METRIC_RANGE[metric])
         ax.tick_params(axis="x", labelsize=8)
         ax.set_ylabel(METRIC_AXES[metric] + (" (log scale)" if log else ""))
     people = {c: len(at[(at["source"] == c[0]) & (at["truth"] == c[1])].drop_duplicates(PERSON))
               for c in cases}
     n_text = ", ".join(f"{s} {TRUTH_LABELS.get(t, t)} {people[(s, t)]}" for s, t in cases)
-    fig.suptitle(f"Own Ψ_k vs the full set, at each source's largest episode count (people: {n_text})",
+    tops = ", ".join(f"{s} {n}" for s, n in source_episodes(at).items())
+    fig.suptitle(f"Own Ψ_k vs the full set after {tops} episodes (people: {n_text})",
                  fontsize=10)
     return Figure("fig_fullset", "Own Ψ_k vs the full paper-sim set",
-                  "Rows at each source's largest episode count, every person scored under their own Ψ_k "
-                  "and under the full set on the same episodes; bars are means, error bars 95% confidence "
-                  "intervals (Student t).", fig)
+                  "Rows at each source's largest episode count that all its people reach, every person "
+                  "scored under their own Ψ_k and under the full set on the same episodes; bars are means, "
+                  f"error bars {F.CI_TEXT}.", fig)
 
 
 def cost_table(rows) -> Table:
@@ -125,15 +135,22 @@ def gap_sentences(at) -> tuple[str, list[dict]]:
             improves = f > k if better else f < k
             gap_k, gap_f = k - r.mean, f - r.mean
             share = 1 - gap_f / gap_k if gap_k != 0 else np.nan
-            verdict = "closes" if closes else "narrows" if improves else "does not narrow"
+            no_gap = (k >= bound) if better else (k <= bound)
+            if no_gap:  # out of set is already as good as in set under Ψ_k
+                verdict, share = "no gap (within the in-set 95% CI)", np.nan
+            else:
+                verdict = "closes" if closes else "narrows" if improves else "does not narrow"
             records.append({"source": source, "reference": ref_src, "metric": metric,
                             "in_set_theta_k": r.mean, "in_set_ci_low": r.low, "in_set_ci_high": r.high,
                             "out_of_set_theta_k": k,
                             "out_of_set_full": f, "share_closed": share, "verdict": verdict})
-            parts.append(f"{verdict} the gap in {METRICS[metric].lower()} ({fmt(k)} → {fmt(f)} against "
+            name = METRICS[metric].lower()
+            head = (f"{name}: the full set {verdict} the gap" if not no_gap
+                    else f"{name}: no gap beyond the in-set 95% CI")
+            parts.append(f"{head} ({fmt(k)} → {fmt(f)} against "
                          f"in-set {fmt(r.mean)}" + (f", {share:.0%} closed)" if np.isfinite(share) else ")"))
         ref_text = "" if ref_src == source else f" (reference: the {ref_src} study's in-set people)"
-        sentences.append(f"For the {source} study's out-of-set people{ref_text} the full set "
+        sentences.append(f"For the {source} study's out-of-set people{ref_text}, own Ψ_k → full set: "
                          + "; ".join(parts) + ".")
     return " ".join(sentences), records
 
@@ -145,13 +162,13 @@ def build(sweep) -> Report:
     rows = with_truth(sweep.rows)
     at = at_max(rows)
     report = Report("fullset", "Report: `fullset` (beyond the paper: the full paper-sim set)")
-    tops = at.drop_duplicates("source")[["source", "episodes"]]
+    tops = source_episodes(rows)
     full = rows.loc[rows["set"] == "full", "n_hypotheses"]
     n_full = int(full.max()) if len(full) else 0
     report.notes.append(
         f"Every person is scored under their own Ψ_k (`theta_k`) and under the full set (`full`, {n_full:,} "
-        "hypotheses) on the same episodes. Largest episode counts: "
-        + ", ".join(f"{r.source} {r.episodes}" for r in tops.itertuples()) + ".")
+        "hypotheses) on the same episodes. Compared at each source's largest episode count that all its "
+        "people reach: " + ", ".join(f"{s} {n}" for s, n in tops.items()) + ".")
     gap_text, gap_records = gap_sentences(at)
     report.notes.append(gap_text)
     report.rules.append(GAP_RULE + "\n")

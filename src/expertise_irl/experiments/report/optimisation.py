@@ -8,7 +8,7 @@ from . import claims as C
 from . import figures as F
 from .capped import capped_section, last_rows
 from .parts import Figure, Report, Table
-from .stats import GROUPS, METRIC_AXES, METRICS, fmt, paired
+from .stats import GROUPS, METRIC_AXES, METRIC_RANGE, METRICS, fmt, paired
 from .sweep import require_columns
 from .tables import factor_rows, means_table, pearson_cell, pearson_table
 
@@ -38,7 +38,8 @@ def fig8(at_e, e: int, methods: list[str]) -> Figure:
         means = at_e.groupby("method")[metric].mean()
         log = metric == "policy_regret" and F.needs_log(means)
         series = {m: {_label(m): at_e.loc[at_e["method"] == m, metric]} for m in methods}
-        F.ci_bars(ax, [_label(m) for m in methods], series, colors, labels, dodge=False, log=log)
+        F.ci_bars(ax, [_label(m) for m in methods], series, colors, labels, dodge=False, log=log,
+                  bounds=METRIC_RANGE[metric])
         ax.tick_params(axis="x", labelrotation=30, labelsize=8)
         for label in ax.get_xticklabels():
             label.set_horizontalalignment("right")
@@ -48,7 +49,7 @@ def fig8(at_e, e: int, methods: list[str]) -> Figure:
                  fontsize=11)
     return Figure("fig8", "Fig. 8: discrete set vs Algorithm 1 (and our methods)",
                   f"Rows at episodes = {e}; bars are means over all environments and instances, error bars "
-                  f"95% confidence intervals (Student t). `{JUDGED}` is the paper's optimisation approach "
+                  f"{F.CI_TEXT}. `{JUDGED}` is the paper's optimisation approach "
                   "(Algorithm 1 as printed); the others are ours.", fig)
 
 
@@ -58,7 +59,8 @@ def fig9(rows, methods: list[str]) -> Figure:
     labels = {m: _label(m) for m in methods}
     for ax, metric in zip(axes, ["policy_regret", "cosine_similarity", "expertise_distance"], strict=True):
         log = metric == "policy_regret" and F.needs_log(rows.groupby(["method", "episodes"])[metric].mean())
-        F.bands(ax, rows, "episodes", metric, "method", methods, colors, labels, log=log, legend=False)
+        F.bands(ax, rows, "episodes", metric, "method", methods, colors, labels, log=log, legend=False,
+                bounds=METRIC_RANGE[metric])
         ax.set_xlabel("episodes seen")
         ax.set_xticks(sorted(rows["episodes"].unique()))
         ax.set_ylabel(METRIC_AXES[metric] + (" (log scale)" if log else ""))
@@ -67,7 +69,7 @@ def fig9(rows, methods: list[str]) -> Figure:
     return Figure("fig9", "Fig. 9: metrics vs number of episodes",
                   "All rows, at the sweep's episode counts "
                   f"({', '.join(map(str, sorted(rows['episodes'].unique())))}); lines are means per method, "
-                  "bands 95% confidence intervals (Student t).", fig)
+                  "bands 95% confidence intervals (Student t, clipped to the metric's range).", fig)
 
 
 def _matched(rows, a: str, b: str, column: str):
@@ -173,11 +175,14 @@ def capped_effect(rows, at_e, max_steps=None) -> str:
     box = rows[rows["method"] == JUDGED] if (rows["method"] == JUDGED).any() else rows
     cell = pearson_cell(box["mean_episode_length"], box["beta_true"])
     cap = f"{max_steps} actions" if max_steps else "max_steps"
-    same = ("measure much the same thing" if np.isfinite(cell.rho) and abs(cell.rho) >= 0.7
-            else "overlap only in part")
     text = (f"Capped episodes are all {cap} long, so the average episode length mostly says how many of a "
-            f"person's episodes are capped: over the `{box['method'].iloc[0]}` rows it correlates with β* at "
-            f"ρ = {cell.text} (n = {cell.n}), so Table IV's episode-length and true-expertise rows {same}. ")
+            f"person's episodes are capped: over the `{box['method'].iloc[0]}` rows ")
+    if np.isfinite(cell.rho):
+        same = "measure much the same thing" if abs(cell.rho) >= 0.7 else "overlap only in part"
+        text += (f"it correlates with β* at ρ = {cell.text} (n = {cell.n}), so Table IV's episode-length "
+                 f"and true-expertise rows {same}. ")
+    else:
+        text += f"its correlation with β* is {cell.text} (n = {cell.n}). "
     at = at_e[at_e["method"] == JUDGED] if (at_e["method"] == JUDGED).any() else at_e
     from .capped import capped_shares
 

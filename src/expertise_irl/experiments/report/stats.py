@@ -18,6 +18,9 @@ METRIC_AXES = {
     "expertise_distance": "|β* − β̂|",
     "policy_regret": "policy regret (Eq. 17)",
 }
+#: The range each metric can take (θ ≥ 0, so the cosine is in [0, 1]); CIs are clipped to it.
+METRIC_RANGE = {"cosine_similarity": (0.0, 1.0), "expertise_distance": (0.0, np.inf),
+                "policy_regret": (0.0, np.inf)}
 #: True where a larger value of the metric is better.
 HIGHER_IS_BETTER = {"cosine_similarity": True, "expertise_distance": False, "policy_regret": False}
 GROUPS = ("high", "medium", "low")

@@ -104,7 +104,8 @@ def means_table(name: str, title: str, caption: str, frame, by: list[str],
         rec = dict(shown)
         for col, label in metrics.items():
             ci = mean_ci(g[col])
-            shown[label] = f"{ci.mean:.3g} [{ci.low:.3g}, {ci.high:.3g}]"
+            shown[label] = (f"{ci.mean:.3g} [{ci.low:.3g}, {ci.high:.3g}]" if np.isfinite(ci.half)
+                            else f"{ci.mean:.3g} [n/a: n = {ci.n}]")
             rec.update({f"{col}_mean": ci.mean, f"{col}_ci_low": ci.low, f"{col}_ci_high": ci.high})
         shown["n"] = len(g)
         rec["n"] = len(g)
