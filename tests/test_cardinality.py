@@ -25,11 +25,16 @@ def test_scales_follow_the_paper():
 
 
 @pytest.fixture(scope="module")
-def smoke(tmp_path_factory) -> pd.DataFrame:
+def sweep_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("card") / "sweep"
     summary = run(STUDY, out, scale="smoke", seed=0, workers=1)
     assert summary.failed == 0 and summary.ran == len(STUDY.tasks(SCALES["smoke"]))
-    return load(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def smoke(sweep_dir) -> pd.DataFrame:
+    return load(sweep_dir)
 
 
 def test_rows_hold_the_full_set_only_for_every_k_and_truth(smoke):
@@ -59,3 +64,24 @@ def test_conditions_must_include_the_full_set():
         ConditionsConfig(conditions=("fixed_beta",))
     with pytest.raises(InputError, match="among"):
         ConditionsConfig(conditions=("full", "fixed_gamma"))
+
+
+def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
+    """Table III and the cardinality figure come from these rows alone."""
+    from expertise_irl.experiments.report import build_report
+
+    md = build_report(sweep_dir).read_text()
+    out = sweep_dir / "report"
+    table3 = pd.read_csv(out / "tables" / "table3.csv")
+    assert len(table3) == 2 * 3  # (in-set, out-of-set) × three metrics
+    assert (out / "figures" / "fig_cardinality.png").stat().st_size > 1000
+    assert "Table III" in md and "](figures/fig_cardinality.png)" in md
+    claims = pd.read_csv(out / "claims.csv")
+    assert {"VI-E-card-in-regret", "VI-E-card-out-cosine", "VI-E-card-out-regret"} == set(claims["id"])
+    # Table III's cells are Pearson's ρ over these rows (in-set, the largest episode count).
+    from scipy.stats import pearsonr
+
+    at = smoke[(smoke.truth == "in_set") & (smoke.episodes == smoke.episodes.max())]
+    rho = pearsonr(at["n_hypotheses"], at["policy_regret"]).statistic
+    cell = table3[table3.row.str.startswith("In set") & (table3.metric == "policy_regret")]
+    assert cell["rho"].item() == pytest.approx(rho, rel=1e-12) and cell["n"].item() == len(at)

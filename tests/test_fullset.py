@@ -19,11 +19,16 @@ KEY = ["environment", "run", "k", "group", "truth", "episodes"]
 
 
 @pytest.fixture(scope="module")
-def smoke(tmp_path_factory) -> pd.DataFrame:
+def sweep_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("full") / "sweep"
     summary = run(STUDY, out, scale="smoke", seed=0, workers=1)
     assert summary.failed == 0
-    return load(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def smoke(sweep_dir) -> pd.DataFrame:
+    return load(sweep_dir)
 
 
 def test_counts_and_sets(smoke):
@@ -66,3 +71,14 @@ def test_full_set_posterior_differs_and_contains_the_own_set(smoke):
     b = smoke[smoke.set == "full"].sort_values(["source", *KEY, "instance"]).reset_index(drop=True)
     np.testing.assert_array_equal(a["n_pairs"], b["n_pairs"])
     assert not np.allclose(a["beta_hat"], b["beta_hat"])
+
+
+def test_report_builds_from_the_smoke_sweep(sweep_dir):
+    from expertise_irl.experiments.report import build_report
+
+    md = build_report(sweep_dir).read_text()
+    out = sweep_dir / "report"
+    assert (out / "figures" / "fig_fullset.png").stat().st_size > 1000
+    gap = pd.read_csv(out / "tables" / "fullset_gap.csv")
+    assert set(gap["source"]) == {"conditions", "optimisation"}
+    assert "](figures/fig_fullset.png)" in md and "18,186" in md

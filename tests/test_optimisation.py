@@ -30,11 +30,16 @@ def test_paper_scale_follows_sec_vii_a():
 
 
 @pytest.fixture(scope="module")
-def smoke(tmp_path_factory) -> pd.DataFrame:
+def sweep_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("opt") / "sweep"
     summary = run(STUDY, out, scale="smoke", seed=0, workers=1)
     assert summary.failed == 0 and summary.ran == len(STUDY.tasks(SMOKE))
-    return load(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def smoke(sweep_dir) -> pd.DataFrame:
+    return load(sweep_dir)
 
 
 def test_every_method_at_every_count_and_nuts_on_its_subset(smoke):
@@ -113,3 +118,21 @@ def test_bad_configs_are_refused():
         OptimisationConfig(beta_low=5.0, beta_high=1.0)
     with pytest.raises(InputError, match="prior must be one of"):
         OptimisationConfig(prior="flat")
+
+
+def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
+    """Figs. 8-9, Table IV, the wall times and the Sec. VII claims come from these rows alone."""
+    from expertise_irl.experiments.report import build_report
+
+    md = build_report(sweep_dir).read_text()
+    out = sweep_dir / "report"
+    for fig in ("fig8", "fig9"):
+        assert (out / "figures" / f"{fig}.png").stat().st_size > 1000 and f"](figures/{fig}.png)" in md
+    claims = pd.read_csv(out / "claims.csv").set_index("id")
+    assert {"VII-B-beta-birl_box", "VII-B-regret-birl_box", "VII-D"} <= set(claims.index)
+    # VII-D's number is the ratio of the mean wall times in the rows.
+    p = smoke.groupby("method")["wall_time_s"].mean()
+    assert claims.loc["VII-D", "value"] == pytest.approx(p["birl_box"] / p["discrete"], rel=1e-9)
+    wall = pd.read_csv(out / "tables" / "walltime.csv")
+    assert set(wall.iloc[:, 0]) >= {"discrete", "birl_box"}
+    assert "5.005" in md  # the prior is stated
