@@ -10,21 +10,39 @@ import pandas as pd
 import pyarrow as pa
 
 from expertise_irl.experiments.store import Store
+from expertise_irl.hypotheses import expertise_group
 
 FEATURES = ("length", "road", "avoid", "slow", "traffic")
+#: ‖θ̂‖₁ of every birl_box row of :func:`optimisation_rows`.
+BOX_L1 = 0.8
 GROUP_BETAS = {"high": (0.01, 0.09), "medium": (0.5, 1.0), "low": (5.0, 10.0)}
 
 
 def group_of(beta: float) -> str:
-    return "high" if beta < 0.3 else "medium" if beta < 3 else "low"
+    """The group the studies write for β (the library's boundaries)."""
+    return expertise_group(beta)
+
+
+#: The record ``experiment run`` writes in ``runs/`` for one local worker (``run_record`` varies it).
+RUN = {"started": "2026-01-01T00:00:00Z", "engine": "local", "scheduler": None, "workers": 1,
+       "retry_failed": False, "tasks_to_run": 2}
+
+
+def run_record(**changes) -> dict:
+    return {**RUN, **changes}
 
 
 def write_sweep(root: Path, study: str, rows: pd.DataFrame, config: dict, *, tasks: int = 2,
-                done: int | None = None, timings: list[float] | None = None) -> Path:
-    """A sweep DIR as the engine leaves it: manifest, ``rows/`` split over ``done`` of ``tasks`` shards."""
+                done: int | None = None, timings: list[float] | None = None,
+                keys: list[str] | None = None, timing_columns: list[dict] | None = None,
+                runs: list[dict] | None = None) -> Path:
+    """A sweep DIR as the engine leaves it: manifest, ``rows/`` split over ``done`` of ``tasks`` shards,
+    ``timings/`` (``wall_time_s`` from ``timings``, more columns per task from ``timing_columns``) and
+    ``runs/*.json`` (default: one run with one local worker)."""
     root = Path(root)
     store = Store(root)
-    keys = [f"t{i:03d}" for i in range(tasks)]
+    keys = keys or [f"t{i:03d}" for i in range(tasks)]
+    tasks = len(keys)
     manifest = {"study": study, "study_version": 1, "scale": "custom", "seed": 0, "config": config,
                 "layout_version": 1, "config_hash": "0" * 64, "task_keys": keys,
                 "created": "2026-01-01T00:00:00Z", "versions": {"expertise-irl": "test"},
@@ -37,7 +55,12 @@ def write_sweep(root: Path, study: str, rows: pd.DataFrame, config: dict, *, tas
     for i, idx in enumerate(parts):
         store.write_table("rows", keys[i], pa.Table.from_pandas(rows.iloc[idx], preserve_index=False))
         t = (timings or [1.0] * done)[i]
-        store.write_table("timings", keys[i], pa.table({"task": [keys[i]], "wall_time_s": [float(t)]}))
+        extra = (timing_columns or [{}] * done)[i]
+        store.write_table("timings", keys[i], pa.table({"task": [keys[i]], "wall_time_s": [float(t)],
+                                                        **{k: [v] for k, v in extra.items()}}))
+    (root / "runs").mkdir(exist_ok=True)
+    for j, record in enumerate([run_record(tasks_to_run=tasks)] if runs is None else runs):
+        (root / "runs" / f"2026-01-01T00000{j}Z-{j}.json").write_text(json.dumps(record))
     return root
 
 
@@ -49,7 +72,8 @@ def _theta(rng, n):
 def optimisation_rows(seed: int = 0, environments: int = 2, instances: int = 6, counts=(10, 20, 30, 40),
                       methods=("discrete", "birl_box", "birl_simplex", "map", "nuts"),
                       nuts_instances: int = 3) -> pd.DataFrame:
-    """Rows of the ``optimisation`` contract; metrics improve with episodes, birl_box beats discrete."""
+    """Rows of the ``optimisation`` contract; metrics improve with episodes, birl_box beats discrete
+    (its θ̂ has ‖θ̂‖₁ = :data:`BOX_L1`)."""
     rng = np.random.default_rng(seed)
     recs = []
     for e in range(environments):
@@ -84,8 +108,8 @@ def optimisation_rows(seed: int = 0, environments: int = 2, instances: int = 6, 
                            "acceptance_rate": 0.3 if m.startswith("birl") else np.nan,
                            "divergences": 0.0 if m == "nuts" else np.nan,
                            "max_rhat": 1.01 if m == "nuts" else np.nan}
-                    for j, f in enumerate(FEATURES):
-                        rec[f"theta_hat_{f}"] = theta[j]
+                    for j, f in enumerate(FEATURES):  # birl_box's E[θ] off the simplex, as it comes out
+                        rec[f"theta_hat_{f}"] = theta[j] * (BOX_L1 if m == "birl_box" else 1.0)
                     recs.append(rec)
     return pd.DataFrame(recs)
 

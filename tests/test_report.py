@@ -9,14 +9,28 @@ import numpy as np
 import pandas as pd
 import pytest
 from cli_helpers import assert_input_error, invoke, ok
-from report_frames import conditions_like_rows, fullset_rows, optimisation_rows, write_sweep
+from report_frames import (
+    BOX_L1,
+    conditions_like_rows,
+    fullset_rows,
+    optimisation_rows,
+    run_record,
+    write_sweep,
+)
 from scipy import stats
 
 from expertise_irl.experiments.report import build_report, read_sweep
 from expertise_irl.experiments.report import claims as C
 from expertise_irl.experiments.report import conditions as cond_report
 from expertise_irl.experiments.report.output import MARKER
-from expertise_irl.experiments.report.tables import CONSTANT, factor_rows, format_rho, pearson_table
+from expertise_irl.experiments.report.stats import fmt, ratio_ci
+from expertise_irl.experiments.report.tables import (
+    CONSTANT,
+    factor_rows,
+    format_rho,
+    means_table,
+    pearson_table,
+)
 
 FIGURES = ["fig2", "fig3", "fig4", "fig5", "fig6", "fig7"]
 
@@ -92,7 +106,10 @@ def test_not_a_sweep_unknown_study_and_no_rows_are_one_line_errors(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     assert_input_error(invoke("experiment", "report", empty), str(empty), "manifest.json")
-    assert_input_error(invoke("experiment", "report", tmp_path / "absent"), "absent", "not a directory")
+    assert_input_error(invoke("experiment", "report", tmp_path / "absent"), "absent", "does not exist")
+    afile = tmp_path / "a-file"
+    afile.write_text("x")
+    assert_input_error(invoke("experiment", "report", afile), "a-file", "not a directory")
     other = write_sweep(tmp_path / "other", "no-such-study", optimisation_rows(instances=1), {})
     assert_input_error(invoke("experiment", "report", other), "no report for study 'no-such-study'")
     none = write_sweep(tmp_path / "none", "optimisation", optimisation_rows(instances=2), {}, tasks=2)
@@ -161,20 +178,88 @@ def test_vi_d_ratio_verdict_at_the_band_edges(smoke):
         got = _by_id(cond_report.claims(rows, 3))["VI-D-policy_regret"]
         assert got.verdict == verdict, (value, got)
         assert got.value == pytest.approx(value / 0.25)
+    # 6× on average, but out-of-set people spread from 0 to 3 (regret ratio 0 to 12): inconclusive
+    out = at & (rows["truth"] == "out_of_set")
+    rows.loc[out, "policy_regret"] = np.resize([0.0, 0.0, 0.0, 0.0, 3.0, 6.0], out.sum())
+    got = _by_id(cond_report.claims(rows, 3))["VI-D-policy_regret"]
+    assert got.value == pytest.approx(6.0) and got.verdict == C.DIFFERS and "inconclusive" in got.why
 
 
 def test_ratio_verdict_rule():
+    clear, includes, below = (1.2, 9.0), (0.8, 9.0), (0.5, 0.9)  # CIs: above 1, across 1, below 1
     for x in (1.5, 2.5, 4.0, 100.0):
-        assert C.ratio_verdict(x, x) == C.REPRODUCED
-        assert C.ratio_verdict(x * 1.5, x) == C.REPRODUCED
-        assert C.ratio_verdict(x * 1.5 * 1.001, x) == C.DIFFERS
-        assert C.ratio_verdict(x / 1.5, x) == C.REPRODUCED
-    assert C.ratio_verdict(1.66, 2.5) == C.DIFFERS
-    assert C.ratio_verdict(0.99, 1.5) == C.NOT_REPRODUCED  # on the wrong side of 1
-    assert C.ratio_verdict(1.0, 1.5) == C.REPRODUCED  # 1.5 / 1.5: the band's lower edge
-    assert C.ratio_verdict(float("nan"), 3.0) == C.NOT_REPRODUCED
-    got = C.ratio_claim("x", "s", "c", "p", [2.0, 4.0], [1.0, 1.0], "a", "b", "q", 3.0)
+        assert C.ratio_verdict(x, x, clear) == C.REPRODUCED
+        assert C.ratio_verdict(x * 1.5, x, clear) == C.REPRODUCED
+        assert C.ratio_verdict(x * 1.5 * 1.001, x, clear) == C.DIFFERS
+        assert C.ratio_verdict(x / 1.5, x, clear) == C.REPRODUCED
+        assert C.ratio_verdict(x, x, includes) == C.DIFFERS  # in the band, but inconclusive
+        assert C.ratio_verdict(x, x, (np.nan, np.nan)) == C.DIFFERS  # no CI: inconclusive
+    assert C.ratio_verdict(1.66, 2.5, clear) == C.DIFFERS
+    # 1.0 is the lower edge of 1.5×'s band, but a ratio of 1 is no effect: never reproduced
+    assert C.ratio_verdict(1.0, 1.5, (1.0, 1.0)) == C.NOT_REPRODUCED
+    assert C.ratio_verdict(1.0, 1.5, includes) == C.DIFFERS
+    assert C.ratio_verdict(0.99, 1.5, includes) == C.DIFFERS
+    assert C.ratio_verdict(0.7, 1.5, below) == C.NOT_REPRODUCED  # the whole CI on the wrong side
+    assert C.ratio_verdict(float("nan"), 3.0, clear) == C.NOT_REPRODUCED
+    # the log band of "2 orders of magnitude": 10**1.5 to 10**2.5
+    band = C.ratio_band(100.0, orders=2)
+    assert band == pytest.approx((31.6227766, 316.227766))
+    assert C.ratio_verdict(50.0, 100.0, clear, band) == C.REPRODUCED
+    assert C.ratio_verdict(50.0, 100.0, clear) == C.DIFFERS  # the linear band [66.7, 150]
+    assert C.ratio_verdict(31.0, 100.0, clear, band) == C.DIFFERS
+
+
+def test_ratio_ci_is_the_seeded_bootstrap_of_the_ratio_of_means():
+    # two pairs: resamples are (0, 0), (1, 1) or mixed, with ratios 2, 4 and 3
+    assert ratio_ci([2.0, 4.0], [1.0, 1.0], paired=True) == (2.0, 4.0)
+    assert ratio_ci([3.0] * 7, [1.5] * 9, paired=False) == (2.0, 2.0)
+    rng = np.random.default_rng(5)
+    num, den = rng.exponential(size=40), rng.exponential(size=40)
+    assert ratio_ci(num, den, paired=True) == ratio_ci(num, den, paired=True)  # seeded: the same
+    lo, hi = ratio_ci(num, den, paired=True)
+    assert lo < num.mean() / den.mean() < hi
+
+
+def _ratio(num, den, target=1.5, paired=True):
+    return C.ratio_claim("x", "s", "c", "p", num, den, "a", "b", "q", target, paired=paired, who="people")
+
+
+def test_ratio_claims_near_1_and_in_the_band():
+    ones = np.ones(8)
+    same = _ratio(ones, ones)  # no effect at all: ratio 1, CI [1, 1]
+    assert same.value == 1.0 and same.verdict == C.NOT_REPRODUCED
+    noisy = _ratio([1.5, 0.5, 1.6, 0.6, 1.4, 0.7, 1.2, 0.66], ones)  # ratio 1.02, CI across 1
+    assert noisy.value == pytest.approx(1.02)
+    assert noisy.verdict == C.DIFFERS and "inconclusive" in noisy.why
+    assert noisy.ci_low < 1 < noisy.ci_high
+    tight = _ratio([1.49, 1.51] * 4, ones)  # 1.5× with every pair at 1.49 or 1.51
+    assert tight.verdict == C.REPRODUCED and 1.49 <= tight.ci_low <= tight.ci_high <= 1.51
+    assert "1.5× [1.49, 1.51]" in tight.ours
+    few = _ratio([1.5] * 5, np.ones(5))  # 5 pairs: too few for a CI
+    assert few.verdict == C.DIFFERS and "n/a: n < 6" in few.ours and "inconclusive" in few.why
+    worse = _ratio(0.8 * ones, ones)
+    assert worse.verdict == C.NOT_REPRODUCED and "against the claim" in worse.why
+    got = _ratio([2.0, 4.0] * 3, np.ones(6), target=3.0)
     assert got.value == 3.0 and got.verdict == C.REPRODUCED and "ratio 3" in got.why
+
+
+def test_pairing_matters_where_people_differ_a_lot():
+    den = np.array([0.1] * 7 + [10.0])
+    num = 1.5 * den  # each person 1.5× worse: paired, the ratio is 1.5 in every resample
+    assert _ratio(num, den, paired=True).verdict == C.REPRODUCED
+    unpaired = _ratio(num, den, paired=False)  # as two independent samples the CI spans 1
+    assert unpaired.verdict == C.DIFFERS and unpaired.ci_low < 1 < unpaired.ci_high
+
+
+def test_vi_c_regret_uses_the_log_band(smoke):
+    rows = read_sweep(smoke[0]).rows.copy()
+    at = (rows["truth"] == "in_set") & (rows["episodes"] == 3)
+    rows.loc[at & (rows["condition"] == "full"), "policy_regret"] = 0.01
+    for fixed, verdict in ((0.5, C.REPRODUCED), (0.25, C.DIFFERS), (3.0, C.REPRODUCED), (3.2, C.DIFFERS)):
+        rows.loc[at & (rows["condition"] == "fixed_beta"), "policy_regret"] = fixed  # 50×, 25×, 300×, 320×
+        got = _by_id(cond_report.claims(rows, 3))["VI-C-regret"]
+        assert got.value == pytest.approx(fixed / 0.01) and got.verdict == verdict, (fixed, got)
+        assert got.rule == "magnitude"
 
 
 def test_vi_e_share_and_threshold_follow_the_rows(smoke):
@@ -183,6 +268,10 @@ def test_vi_e_share_and_threshold_follow_the_rows(smoke):
     got = _by_id(cond_report.claims(rows, 3))
     share = (rows.loc[full_in, "group_hat"] == rows.loc[full_in, "group_true"]).mean()
     assert got["VI-E-group"].value == pytest.approx(share)
+    mass = (rows.loc[full_in, "p_group_true"] > 0.5).mean()
+    assert f"(p_group_true > 0.5): {mass:.0%}" in got["VI-E-group"].why
+    rows.loc[full_in, "p_group_true"] = 0.4
+    assert "(p_group_true > 0.5): 0%" in _by_id(cond_report.claims(rows, 3))["VI-E-group"].why
     rows.loc[full_in, "group_hat"] = "nobody"
     assert _by_id(cond_report.claims(rows, 3))["VI-E-group"].verdict == C.NOT_REPRODUCED
     rows.loc[full_in, "policy_regret"] = 0.05
@@ -258,6 +347,15 @@ def test_table_1_says_when_it_needs_study_version_2(smoke):
 
 
 # ---------------------------------------------------------------- other studies, hand-made rows
+def _pairs(rows, a: str, b: str, column: str):
+    """``column`` of methods a and b on the same (environment, instance, episodes), a and b aligned."""
+    key = ["environment", "instance", "episodes"]
+    x = rows[rows["method"] == a].set_index(key)[column]
+    y = rows[rows["method"] == b].set_index(key)[column]
+    common = x.index.intersection(y.index)
+    return x.loc[common], y.loc[common]
+
+
 def test_optimisation_report_from_contract_rows(tmp_path):
     rows = optimisation_rows()
     sweep = write_sweep(tmp_path / "opt", "optimisation", rows, {"episode_counts": [10, 20, 30, 40],
@@ -268,27 +366,71 @@ def test_optimisation_report_from_contract_rows(tmp_path):
         assert (out / "figures" / f"{name}.png").is_file() and (out / "figures" / f"{name}.pdf").is_file()
     claims = pd.read_csv(out / "claims.csv").set_index("id")
     box, disc = rows[rows["method"] == "birl_box"], rows[rows["method"] == "discrete"]
+    # VII-D: about 4× in every pair (the rows' 4.0 n / 10 · (1 + 0.1 U) against 1.0 n / 10 · ...), so
+    # the CI lies inside the band [2.67, 6]
+    b, d = _pairs(rows, "birl_box", "discrete", "wall_time_s")
+    assert ((b / d) > 3.3).all() and ((b / d) < 4.5).all()
     speed = box["wall_time_s"].mean() / disc["wall_time_s"].mean()
     assert claims.loc["VII-D", "value"] == pytest.approx(speed)
-    assert claims.loc["VII-D", "verdict"] == C.ratio_verdict(speed, 4.0)
+    assert claims.loc["VII-D", "verdict"] == C.REPRODUCED
     at40 = rows[rows["episodes"] == 40]
-    ratio = (at40.loc[at40["method"] == "discrete", "expertise_distance"].mean()
-             / at40.loc[at40["method"] == "birl_box", "expertise_distance"].mean())
+    # β distance: every pair above 1, the ratio of means 2.54, above the band [1, 2.25]
+    d, b = _pairs(at40, "discrete", "birl_box", "expertise_distance")
+    ratio = d.mean() / b.mean()
+    assert ((d / b) > 1).all() and ratio == pytest.approx(2.543, abs=1e-3)
     assert claims.loc["VII-B-beta-birl_box", "value"] == pytest.approx(ratio)
-    assert claims.loc["VII-B-beta-birl_box", "verdict"] == C.ratio_verdict(ratio, 1.5)
+    assert claims.loc["VII-B-beta-birl_box", "verdict"] == C.DIFFERS
+    assert claims.loc["VII-B-beta-birl_box", "ci_low"] > 1
+    # regret: every pair above 1, the ratio 1.87, inside [1.67, 3.75]
+    d, b = _pairs(at40, "discrete", "birl_box", "policy_regret")
+    assert ((d / b) > 1).all() and d.mean() / b.mean() == pytest.approx(1.871, abs=1e-3)
+    assert claims.loc["VII-B-regret-birl_box", "verdict"] == C.REPRODUCED
     for m in ("birl_simplex", "map", "nuts"):
         assert claims.loc[f"VII-B-regret-{m}", "verdict"] == C.NOT_JUDGED
     nuts = at40[at40["method"] == "nuts"].set_index(["environment", "instance"])
     disc40 = at40[at40["method"] == "discrete"].set_index(["environment", "instance"]).loc[nuts.index]
     assert claims.loc["VII-B-beta-nuts", "value"] == pytest.approx(
         disc40["expertise_distance"].mean() / nuts["expertise_distance"].mean())  # over NUTS' instances
+    # birl_box rescaled: |β* − β̂ / ‖θ̂‖₁| with ‖θ̂‖₁ = 0.8 on every birl_box row; not judged
+    box40 = at40[at40["method"] == "birl_box"]
+    rescaled = (box40["beta_true"] - box40["beta_hat"] / BOX_L1).abs()
+    got = claims.loc["VII-B-beta-birl_box_rescaled"]
+    discrete40 = at40.loc[at40["method"] == "discrete", "expertise_distance"]
+    assert got["value"] == pytest.approx(discrete40.mean() / rescaled.mean())
+    assert got["verdict"] == C.NOT_JUDGED
     wall = pd.read_csv(out / "tables" / "walltime.csv").set_index("method")
     assert wall.loc["birl_box", "median_s"] == pytest.approx(box["wall_time_s"].median())
     table4 = pd.read_csv(out / "tables" / "table4.csv")
     got = table4[(table4["factor"] == "beta_true") & (table4["metric"] == "policy_regret")].iloc[0]
     assert got["rho"] == pytest.approx(stats.pearsonr(box["beta_true"], box["policy_regret"]).statistic)
     md = (out / "report.md").read_text()
-    assert "β ~ N(5.005, 1.5)" in md and "## Capped episodes" in md
+    assert "## Capped episodes" in md
+    # the prior once, with the methods that use it
+    assert md.count("θ ~ U[0,1]^5, β ~ N(5.005, 1.5)") == 1
+    assert "`birl_box`, `birl_simplex`, `map`, `nuts`: paper (θ ~ U[0,1]^5" in md
+    assert f"mean ‖θ̂‖₁ is {fmt(BOX_L1)}" in md and "not the chain's mean of β/‖θ‖₁" in md
+    assert "| runs | 1 recorded in `runs/`: a run with 1 local worker and 3 tasks to run |" in md
+    assert "one worker" not in md
+
+
+@pytest.mark.parametrize("run, shared", [
+    (run_record(workers=2), "2 local workers"),
+    (run_record(workers=None, engine="dask", scheduler="tcp://10.0.0.1:8786"), "tcp://10.0.0.1:8786"),
+    (None, "records no run")])
+def test_vii_d_is_not_judged_when_tasks_shared_the_machine(tmp_path, run, shared):
+    rows = optimisation_rows(instances=3)
+    runs = [run_record(workers=1, tasks_to_run=0), run] if run is not None else []
+    sweep = write_sweep(tmp_path / "opt", "optimisation", rows, {"max_steps": 500}, runs=runs)
+    build_report(sweep)
+    claims = pd.read_csv(sweep / "report" / "claims.csv").set_index("id")
+    got = claims.loc["VII-D"]
+    assert got["verdict"] == C.WITHHELD and shared in got["why"] and "Not judged" in got["why"]
+    assert got["value"] == pytest.approx(4.0, rel=0.15)  # the number is still given
+    assert claims.loc["VII-B-regret-birl_box", "verdict"] != C.WITHHELD  # only the timing claim
+    md = (sweep / "report" / "report.md").read_text()
+    assert C.VERDICT_NOTES[C.WITHHELD] in md
+    if run is not None:
+        assert shared in md.split("| runs |")[1].splitlines()[0]  # the header names the workers
 
 
 def test_cardinality_report_from_contract_rows(tmp_path):
@@ -307,8 +449,9 @@ def test_cardinality_report_from_contract_rows(tmp_path):
     claims = pd.read_csv(out / "claims.csv").set_index("id")
     in_regret = stats.pearsonr(at.loc[at["truth"] == "in_set", "n_hypotheses"],
                                at.loc[at["truth"] == "in_set", "policy_regret"])
+    assert in_regret.statistic > 0  # the fixture's in-set regret grows with k
     assert claims.loc["VI-E-card-in-regret", "verdict"] == (
-        C.REPRODUCED if in_regret.statistic > 0 and in_regret.pvalue < 0.05 else C.DIFFERS)
+        C.REPRODUCED if in_regret.pvalue < 0.05 else C.DIFFERS)
 
 
 @pytest.mark.parametrize("truth_column", [True, False])
@@ -337,3 +480,40 @@ def test_fullset_report_from_contract_rows(tmp_path, truth_column):
     else:
         assert set(means["truth"]) == {"out_of_set"}  # derived from truth_probability
         assert "No in-set people" in md
+
+
+def test_means_tables_clip_their_cis_to_the_metric_range():
+    frame = pd.DataFrame({"g": ["a"] * 4, "cosine_similarity": [1.0, 1.0, 0.9, 1.0],
+                          "expertise_distance": [0.0, 0.0, 0.0, 4.0], "policy_regret": [0.1, 0.2, 0.1, 0.2]})
+    t = means_table("m", "M", "cap.", frame, ["g"])
+    rec = t.data.iloc[0]
+    ref = stats.t.interval(0.95, 3, loc=0.975, scale=frame["cosine_similarity"].std() / 2)
+    assert ref[1] > 1 and rec["cosine_similarity_ci_high"] == 1.0
+    assert rec["cosine_similarity_ci_low"] == pytest.approx(ref[0])
+    assert rec["expertise_distance_ci_low"] == 0.0  # the Student t bound is below 0
+    assert t.display.iloc[0]["Preferences similarity"].endswith(", 1]")
+    assert "clipped to the metric's range" in t.caption
+
+
+def test_capped_shares_and_the_effect_text_speak_of_the_same_people(smoke):
+    sweep = read_sweep(smoke[0])
+    rows = sweep.rows
+    report = cond_report.build(sweep)
+    for f in report.figures:
+        f.fig.clear()
+    text = report.sections[0].text
+    last = rows[rows["condition"] == "full"].sort_values("episodes").groupby(cond_report.PERSON).tail(1)
+    inset = last[last["truth"] == "in_set"].groupby("group_true")[["n_capped", "episodes"]].sum()
+    shares = {g: inset.loc[g, "n_capped"] / inset.loc[g, "episodes"] for g in inset.index}
+    sentence = text.split("in-set people: ")[1].split(";")[0]
+    for g, v in shares.items():
+        assert f"{g} {v:.0%}" in sentence
+        assert f"× ({v:.0%} of their episodes capped)" in text.split("Per expertise group of the in-set")[1]
+    assert "hit the cap (60 actions)" in text  # conditions smoke's max_steps
+
+
+def test_why_sentences_use_a_true_minus_sign():
+    x = np.arange(10.0)
+    got = C.correlation_claim("x", "s", "c", "p", x, -x + np.sin(x), "f", "m", claimed="negative")
+    assert "is −0.9" in got.why and "-0." not in got.why
+    assert fmt(-0.5) == "−0.5" and fmt(-2e-5) == "−2.00e−05" and fmt(0.25) == "0.25"

@@ -1,4 +1,5 @@
-"""``expertise-irl experiment run | status | list``: sweeps on a laptop or a Dask cluster."""
+"""``expertise-irl experiment run | status | list | report``: sweeps on a laptop or a Dask cluster, and
+the report of a sweep (figures, tables and the paper's claims)."""
 
 from __future__ import annotations
 

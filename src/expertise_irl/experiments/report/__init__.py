@@ -1,7 +1,7 @@
 """Reports of sweeps: figures, Pearson tables and the paper's claims with computed verdicts.
 
 ``build_report(DIR, out)`` reads one sweep directory alone (``manifest.json``, the Parquet rows and
-timings), dispatches on the manifest's study to that study's report (:mod:`.conditions`,
+timings, ``runs/*.json``), dispatches on the manifest's study to that study's report (:mod:`.conditions`,
 :mod:`.cardinality`, :mod:`.optimisation`, :mod:`.fullset`) and writes, into ``out``
 (default ``DIR/report``): ``report.md``, ``figures/figN.png`` and ``.pdf``, ``tables/*.csv`` and
 ``claims.csv``.
@@ -14,7 +14,7 @@ from importlib import import_module
 from pathlib import Path
 
 from ...errors import InputError
-from .sweep import Sweep, read_sweep
+from .sweep import Sweep, check_directory, read_sweep
 
 #: study name -> (module of its report, the identity columns its rows are sorted by)
 REPORTS = {
@@ -32,8 +32,7 @@ __all__ = ["REPORTS", "Sweep", "build_report", "read_sweep"]
 def _study_of(root: Path) -> str:
     from ..store import Store
 
-    if not root.is_dir():
-        raise InputError(f"{root}: not a directory (expected a sweep directory with manifest.json)")
+    check_directory(root)
     manifest = Store(root).read_manifest()
     study = manifest.get("study") if isinstance(manifest, dict) else None
     if study not in REPORTS:

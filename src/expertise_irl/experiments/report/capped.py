@@ -12,11 +12,42 @@ def last_rows(frame, person: list[str]):
     return frame.loc[idx.to_numpy()]
 
 
+TRUTH_PEOPLE = {"in_set": "in-set people", "out_of_set": "out-of-set people"}
+
+
+def population(key: dict) -> str:
+    """How a sentence names the people of one ``by`` key: "in-set people", "the conditions study's
+    out-of-set people", or "all people" (no key)."""
+    source = key.get("source")
+    truth = TRUTH_PEOPLE.get(key.get("truth"), "people")
+    return f"the {source} study's {truth}" if source else truth if key.get("truth") else "all people"
+
+
+def cap_text(max_steps, by_value=None) -> str | None:
+    """``"500 actions"``; ``max_steps`` may map the first ``by`` column's values to their caps."""
+    if isinstance(max_steps, dict):
+        if by_value is not None:
+            max_steps = max_steps.get(by_value)
+        else:
+            caps = {v for v in max_steps.values() if v}
+            if len(caps) != 1:
+                given = [(k, int(v)) for k, v in max_steps.items() if v]
+                return (", ".join(f"{v}{' actions' if i == 0 else ''} for {k}"
+                                  for i, (k, v) in enumerate(given)) or None)
+            max_steps = caps.pop()
+    return f"{int(max_steps)} actions" if max_steps else None
+
+
 def capped_section(last, effect: str, *, by: list[str] | None = None, model: str | None = None,
-                   max_steps: int | None = None, name: str = "capped") -> Section:
+                   max_steps: int | dict | None = None, name: str = "capped",
+                   everyone: str = "all people") -> Section:
     """``last``: one row per person (their largest episode count), with ``n_capped`` and ``episodes``.
 
-    ``effect`` (sentences built by the study from its numbers) says which results the cap moves.
+    The shares are given per value of ``by`` (e.g. per truth: in-set and out-of-set people apart),
+    each population named, so that ``effect`` (sentences built by the study from its numbers, which
+    say which results the cap moves) can name the same population. ``max_steps``: the cap, or a
+    dict from the values of ``by[0]`` to their caps; unknown (None): the text says "the cap".
+    ``everyone``: how the text names the people where there is no ``by``.
     """
     import pandas as pd
 
@@ -34,28 +65,41 @@ def capped_section(last, effect: str, *, by: list[str] | None = None, model: str
                             kind="stable").reset_index(drop=True)
     display = data.copy()
     display["share_capped"] = display["share_capped"].map(lambda x: f"{x:.0%}")
-    cap = f"{max_steps} actions" if max_steps else "the step cap"
-    table = Table(name, "Episodes that hit the step cap", f"Per expertise group of β* (group_true), each "
-                  f"person's episodes up to their largest episode count; capped = ended after {cap} "
-                  "without reaching the goal.", display, data)
-    shares_all = capped_shares(last)
-    share = {g: shares_all[g] for g in GROUPS if g in shares_all}
-    shares = ", ".join(f"{g} {share[g]:.0%}" for g in share)
+    cap = cap_text(max_steps)
+    ended = f"ended at the cap ({cap})" if cap else "ended at the step cap (`max_steps`)"
+    table = Table(name, "Episodes that hit the step cap", "Per "
+                  + (f"{', '.join(by)} and " if by else "") + "expertise group of β* (group_true), each "
+                  f"person's episodes up to their largest episode count; capped = {ended} without "
+                  "reaching the goal.", display, data)
+    pops = []  # (name, {group: share})
+    for key, g in (data.groupby(by, sort=False) if by else [((), data)]):
+        key = dict(zip(by, key if isinstance(key, tuple) else (key,), strict=True))
+        share = dict(zip(g["group_true"], g["share_capped"], strict=True))
+        pops.append((population(key) if key else everyone, share))
+    shares = "; ".join(f"{who}: " + ", ".join(f"{g} {v:.0%}" for g, v in share.items())
+                       for who, share in pops)
     model_text = ("the paper's model (maxent)" if model in (None, "maxent")
                   else f"the {model} model (not the paper's maxent)")
-    text = (f"Share of episodes that hit the cap ({cap}) per expertise group: {shares}. Under {model_text} "
+    the_cap = f"the cap ({cap})" if cap else "the cap"
+    text = (f"Share of episodes that hit {the_cap} per expertise group of β*, {shares}. Under {model_text} "
             "a person is paid for randomness and the goal is worth 0 once reached, so simulated people "
             "whose β is large next to their weights prefer to keep moving and rarely reach the goal "
             "(DESIGN §1). ")
-    heavy = [g for g in share if share[g] >= 0.5]
+    heavy = [(who, [g for g, v in share.items() if v > 0.5]) for who, share in pops]
+    heavy = [(who, gs) for who, gs in heavy if gs]
     if heavy:
-        names = heavy[0] if len(heavy) == 1 else ", ".join(heavy[:-1]) + " and " + heavy[-1]
-        text += (f"Here most {names}-expertise episodes are capped: those demonstrations stop at the cap "
-                 f"({cap}) without reaching the goal; they are not goal-directed paths. ")
+        text += ("Here most episodes are capped for " + "; ".join(f"{_and(gs)} expertise ({who})"
+                                                              for who, gs in heavy)
+                 + ": those demonstrations stop at the cap without reaching the goal; they are not "
+                 "goal-directed paths. ")
     else:
         text += "Here no group has most of its episodes capped. "
     text += effect
     return Section("Capped episodes", text.strip(), table)
+
+
+def _and(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
 def capped_shares(last, by: str = "group_true") -> dict[str, float]:

@@ -95,7 +95,7 @@ def capped_effect(at_n, last) -> str:
         if len(sub):
             cell = pearson_cell(sub["n_hypotheses"], sub["policy_regret"])
             parts.append(f"{g} ρ = {cell.text}, mean regret {fmt(sub['policy_regret'].mean())} "
-                         f"({shares.get(g, float('nan')):.0%} capped)")
+                         f"({shares.get(g, float('nan')):.0%} of their episodes capped)")
     if not parts:
         return ""
     return ("Table III's in-set regret row per expertise group: " + "; ".join(parts) + ". For a person with "

@@ -6,13 +6,21 @@ built from the numbers. The verdict rules (also printed in each report):
 - ordering ("A below B"): *reproduced* if the mean paired difference has the claimed sign and a
   two-sided Wilcoxon signed-rank test gives p < 0.05; *differs* if the sign is right but p ≥ 0.05;
   *not reproduced* if the sign is wrong (or every difference is zero).
-- ratio ("≈ X×"): *reproduced* if our ratio of means is within [X/1.5, 1.5·X]; *differs* if it is on
-  the claimed side of 1 but outside that band; *not reproduced* otherwise.
+- ratio ("≈ X×"): the ratio of means with a 95% percentile-bootstrap CI (paired where the rows
+  pair). *reproduced* if the ratio is within [X/1.5, 1.5·X] and the CI excludes 1 on the claimed
+  side; *differs* if the CI excludes 1 on the claimed side but the ratio is outside the band, or
+  if the CI includes 1 or cannot be computed (inconclusive); *not reproduced* if the whole CI
+  lies on the other side of 1.
+  "≈ m orders of magnitude" uses the log band [10^(m−0.5), 10^(m+0.5)] instead.
 - share ("most"): *reproduced* if the share is above 1/2 and a one-sided binomial test against 1/2
   gives p < 0.05; *differs* if above 1/2 with p ≥ 0.05; *not reproduced* if at most 1/2.
 - threshold ("≈ 0 by n episodes"): *reproduced* if the mean is at most the threshold in every group;
   *differs* if the mean over all groups is but some group's is not; *not reproduced* otherwise.
 - correlation ("ρ > 0, significant"): as ordering, with Pearson's p in place of Wilcoxon's.
+
+A claim is *not judged (ours)* where the number is for one of our methods, beside the paper's,
+and *not judged* where the rows cannot judge it (the "why" says why, e.g. timings taken while
+other tasks shared the machine).
 """
 
 from __future__ import annotations
@@ -21,21 +29,44 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .stats import fmt, fmt_p, wilcoxon_p
+from .stats import BOOTSTRAP_SEED, RESAMPLES, fmt, fmt_p, ratio_ci, wilcoxon_p
 
 ALPHA = 0.05
 BAND = 1.5
+#: The fewest rows per side a ratio's bootstrap CI is computed from: the fewest pairs with which the
+#: ordering rule's two-sided Wilcoxon test can reach p < 0.05 (2 / 2**6). With fewer the CI is n/a.
+MIN_BOOTSTRAP_N = 6
+#: Half-width, in orders of magnitude, of the band of "≈ m orders of magnitude" claims.
+LOG_HALF_BAND = 0.5
 REPRODUCED, DIFFERS, NOT_REPRODUCED = "reproduced", "differs", "not reproduced"
-NOT_JUDGED, NO_DATA = "not judged (ours)", "n/a (no data)"
+NOT_JUDGED, WITHHELD, NO_DATA = "not judged (ours)", "not judged", "n/a (no data)"
+#: Every verdict a claim can get.
+VERDICTS = (REPRODUCED, DIFFERS, NOT_REPRODUCED, NOT_JUDGED, WITHHELD, NO_DATA)
+#: What the verdicts other than the rules' three mean (printed under the rules where they occur).
+VERDICT_NOTES = {
+    NOT_JUDGED: "not judged (ours): the same number for one of our methods, beside the paper's; the "
+                "paper makes no claim about it.",
+    WITHHELD: "not judged: the rows cannot judge this claim; the why says what is missing.",
+    NO_DATA: "n/a (no data): the sweep has no rows for it.",
+}
 
 RULES = {
     "ordering": "Ordering claims (A below/above B): reproduced if the mean paired difference has the "
                 "claimed sign and a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) gives "
                 "p < 0.05; differs if the sign is right but p ≥ 0.05; not reproduced if the sign is "
                 "wrong or every difference is zero.",
-    "ratio": f"Ratio claims (≈ X×): our ratio of means is reproduced if it lies within [X/{BAND}, "
-             f"{BAND}·X]; differs if it is on the claimed side of 1 but outside that band; not "
-             "reproduced otherwise.",
+    "ratio": f"Ratio claims (≈ X×): our ratio of means, with a 95% percentile-bootstrap CI "
+             f"({RESAMPLES} resamples, numpy Generator seed {BOOTSTRAP_SEED}; rows that pair, the same "
+             "people or instances under both, are resampled as pairs, other rows each side on its "
+             f"own). Reproduced if the ratio lies within [X/{BAND}, {BAND}·X] and the CI excludes 1 on "
+             "the claimed side; differs if the CI excludes 1 on the claimed side but the ratio is "
+             "outside the band, or if the CI includes 1 (inconclusive); not reproduced if the whole "
+             "CI lies on the other side of 1 (its nearer bound at 1 or past it). With fewer than "
+             f"{MIN_BOOTSTRAP_N} rows on a side (too few for the ordering rule's Wilcoxon test to reach "
+             "p < 0.05) there is no CI and the claim is inconclusive (differs).",
+    "magnitude": f"Order-of-magnitude claims (≈ m orders of magnitude): as ratio claims, with a band of "
+                 f"{LOG_HALF_BAND:g} orders either side on a log scale, [10^(m−{LOG_HALF_BAND:g}), "
+                 f"10^(m+{LOG_HALF_BAND:g})] (for 2 orders: {10 ** 1.5:.1f}× to {10 ** 2.5:.0f}×).",
     "share": "Share claims (most people): reproduced if the share is above 1/2 and a one-sided "
              "binomial test against 1/2 gives p < 0.05; differs if it is above 1/2 with p ≥ 0.05; "
              "not reproduced if it is at most 1/2.",
@@ -60,6 +91,8 @@ class ClaimResult:
     rule: str
     n: int
     value: float = float("nan")  # the number the verdict is about (difference, ratio, share, ...)
+    ci_low: float = float("nan")  # its 95% CI, where the rule uses one (ratio claims)
+    ci_high: float = float("nan")
 
     def record(self) -> dict:
         return asdict(self)
@@ -100,36 +133,87 @@ def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *,
                        "ordering", n, mean_d)
 
 
-def ratio_verdict(ratio: float, target: float) -> str:
-    if not np.isfinite(ratio):
+def ratio_band(target: float, orders: float | None = None) -> tuple[float, float]:
+    """The band a ratio claim's ratio must lie in: [X/1.5, 1.5·X], or a log band for ``orders``."""
+    if orders is not None:
+        return 10 ** (orders - LOG_HALF_BAND), 10 ** (orders + LOG_HALF_BAND)
+    return target / BAND, target * BAND
+
+
+def _ci_side(ci: tuple[float, float], target: float) -> str:
+    """Where the CI lies against 1: "claimed" (all on ``target``'s side), "other" (its bound nearest
+    the claim at or past 1), "includes" (1 inside it) or "undefined"."""
+    lo, hi = ci
+    if np.isnan(lo) or np.isnan(hi):
+        return "undefined"
+    if target > 1:
+        return "claimed" if lo > 1 else "other" if hi <= 1 else "includes"
+    return "claimed" if hi < 1 else "other" if lo >= 1 else "includes"
+
+
+def ratio_verdict(ratio: float, target: float, ci: tuple[float, float],
+                  band: tuple[float, float] | None = None) -> str:
+    """The ratio rule: ``ratio`` and its 95% ``ci`` against a claim of ≈ ``target``."""
+    lo, hi = band or ratio_band(target)
+    if np.isnan(ratio):
         return NOT_REPRODUCED
-    if target / BAND <= ratio <= target * BAND:
-        return REPRODUCED
-    if (target > 1 and ratio > 1) or (target < 1 and ratio < 1):
-        return DIFFERS
-    return NOT_REPRODUCED
+    side = _ci_side(ci, target)
+    if side == "claimed":
+        return REPRODUCED if lo <= ratio <= hi else DIFFERS
+    return NOT_REPRODUCED if side == "other" else DIFFERS  # includes 1 or undefined: inconclusive
 
 
 def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantity, target,
-                *, judged=True) -> ClaimResult:
-    """``mean(num) / mean(den)`` is claimed to be about ``target``."""
+                *, paired: bool, who: str, orders: float | None = None, judged: bool = True,
+                withheld: str | None = None) -> ClaimResult:
+    """``mean(num) / mean(den)`` is claimed to be about ``target`` (``10**orders`` if ``orders``).
+
+    ``paired``: ``num[i]`` and ``den[i]`` are one unit (``who``, e.g. "in-set people") under both
+    sides; pairs with a NaN are dropped. Otherwise the sides are independent samples of ``who``.
+    ``judged=False``: one of our methods (verdict :data:`NOT_JUDGED`); ``withheld``: why the rows
+    cannot judge the claim (verdict :data:`WITHHELD`).
+    """
     num = np.asarray(num, dtype=np.float64)
     den = np.asarray(den, dtype=np.float64)
-    num, den = num[np.isfinite(num)], den[np.isfinite(den)]
+    if paired:
+        keep = np.isfinite(num) & np.isfinite(den)
+        num, den = num[keep], den[keep]
+    else:
+        num, den = num[np.isfinite(num)], den[np.isfinite(den)]
     n = min(len(num), len(den))
+    rule = "ratio" if orders is None else "magnitude"
     if n == 0:
         return ClaimResult(id, section, claim, paper, "n/a", NO_DATA, f"no rows for {num_name} or "
-                           f"{den_name}.", "ratio", 0)
+                           f"{den_name}.", rule, 0)
     mn, md = float(num.mean()), float(den.mean())
     ratio = mn / md if md != 0 else (np.inf if mn > 0 else np.nan)
-    lo, hi = target / BAND, target * BAND
-    ours = f"{fmt(ratio)}× ({num_name} {fmt(mn)} / {den_name} {fmt(md)}, n = {len(num)} / {len(den)})"
-    verdict = ratio_verdict(ratio, target) if judged else NOT_JUDGED
+    few = n < MIN_BOOTSTRAP_N
+    ci = (np.nan, np.nan) if few else ratio_ci(num, den, paired=paired)
+    lo, hi = ratio_band(target, orders)
+    ci_text = (f"[{fmt(ci[0])}, {fmt(ci[1])}]" if np.all(np.isfinite(ci))
+               else f"[n/a: n < {MIN_BOOTSTRAP_N}]" if few else "[n/a]")
+    counts = f"n = {n} pair{'s' if n != 1 else ''}" if paired else f"n = {len(num)} / {len(den)}"
+    ours = (f"{fmt(ratio)}× {ci_text} ({num_name} {fmt(mn)} / {den_name} {fmt(md)}, {counts})")
+    if withheld:
+        verdict = WITHHELD
+    else:
+        verdict = ratio_verdict(ratio, target, ci, (lo, hi)) if judged else NOT_JUDGED
     where = ("inside" if lo <= ratio <= hi else "outside") if np.isfinite(ratio) else "undefined for"
-    side = "above" if ratio > 1 else "below" if ratio < 1 else "at"
+    around = f"{fmt(target)}× ({orders:g} orders of magnitude, log band)" if orders is not None \
+        else f"{fmt(target)}×"
+    kind = (f"paired bootstrap over {n} {who}" if paired
+            else f"bootstrap over {len(num)} and {len(den)} {who}, each side on its own")
+    side = {"claimed": "the CI excludes 1 on the claimed side",
+            "other": f"the CI lies {'at or below' if target > 1 else 'at or above'} 1, against the claim",
+            "includes": "the CI includes 1: inconclusive",
+            "undefined": (f"no CI from fewer than {MIN_BOOTSTRAP_N} rows: inconclusive" if few
+                          else "the CI is undefined: inconclusive")}[_ci_side(ci, target)]
     why = (f"mean {quantity} is {fmt(mn)} for {num_name} and {fmt(md)} for {den_name}: ratio "
-           f"{fmt(ratio)}, {where} the band [{fmt(lo)}, {fmt(hi)}] around {fmt(target)}× and {side} 1.")
-    return ClaimResult(id, section, claim, paper, ours, verdict, why, "ratio", n, ratio)
+           f"{fmt(ratio)}, 95% CI {ci_text} ({kind}); {where} the band [{fmt(lo)}, {fmt(hi)}] around "
+           f"{around}; {side}.")
+    if withheld:
+        why += f" Not judged: {withheld}"
+    return ClaimResult(id, section, claim, paper, ours, verdict, why, rule, n, ratio, ci[0], ci[1])
 
 
 def share_claim(id, section, claim, paper, hits, what, *, detail: str = "") -> ClaimResult:
@@ -174,7 +258,7 @@ def threshold_claim(id, section, claim, paper, overall, by_group: dict[str, floa
 
 def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claimed="positive") -> ClaimResult:
     """Pearson ρ of ``x`` and ``y`` is claimed to be ``claimed`` ("positive"/"negative") and significant."""
-    from .tables import pearson_cell
+    from .tables import format_rho, pearson_cell
 
     cell = pearson_cell(x, y)
     if not np.isfinite(cell.rho):
@@ -183,7 +267,7 @@ def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claime
                            "correlation", cell.n)
     sign_right = cell.rho > 0 if claimed == "positive" else cell.rho < 0
     verdict = _ordering_verdict(sign_right, cell.p)
-    why = (f"ρ of {factor} and {metric} is {cell.rho:.2f} over {cell.n} rows "
+    why = (f"ρ of {factor} and {metric} is {format_rho(cell.rho, 1.0)} over {cell.n} rows "
            f"({'the claimed' if sign_right else 'not the claimed'} sign), p = {fmt_p(cell.p)}.")
     return ClaimResult(id, section, claim, paper, f"ρ = {cell.text} (n = {cell.n})", verdict, why,
                        "correlation", cell.n, cell.rho)

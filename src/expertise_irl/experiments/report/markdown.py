@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import math
 
-from .claims import RULES, claims_frame
+from .claims import RULES, VERDICT_NOTES, claims_frame
 from .parts import Report, Table
+from .sweep import workers_text
 
 
 def _cell(v) -> str:
@@ -44,7 +45,8 @@ def header(sweep) -> str:
         ("rows", f"{len(sweep.rows):,}"),
         ("tasks", f"{sweep.done} done / {sweep.total} total, {sweep.failed} failed"),
         ("task wall time", f"{sweep.task_time_s:.1f} s (sum of `wall_time_s` over {len(sweep.timings)} "
-                           "finished tasks, one worker each)"),
+                           "finished tasks)"),
+        ("runs", runs_text(sweep)),
         ("versions", vtext or "not recorded"),
         ("machine", mtext or "not recorded"),
         ("sweep created", m.get("created", "?")),
@@ -52,6 +54,14 @@ def header(sweep) -> str:
     ]
     lines = ["| | |", "|---|---|"] + [f"| {k} | {_cell(v)} |" for k, v in rows]
     return "\n".join(lines)
+
+
+def runs_text(sweep) -> str:
+    """The recorded invocations of ``experiment run`` (``runs/*.json``): engine and workers of each."""
+    if not sweep.runs:
+        return "not recorded (no `runs/*.json`)"
+    n = len(sweep.runs)
+    return f"{n} recorded in `runs/`: " + workers_text(sweep.runs)
 
 
 def unfinished_warning(sweep) -> str | None:
@@ -81,6 +91,8 @@ def render(report: Report, sweep) -> str:
                    "[`claims.csv`](claims.csv)):\n")
         kinds = list(dict.fromkeys(c.rule for c in report.claims))
         out.extend(f"- {RULES[k]}" for k in kinds)
+        verdicts = {c.verdict for c in report.claims}
+        out.extend(f"- {text}" for v, text in VERDICT_NOTES.items() if v in verdicts)
         out.append("")
     else:
         out.append("This study goes beyond the paper: it has no claim of the paper to judge.\n")

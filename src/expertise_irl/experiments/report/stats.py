@@ -54,6 +54,48 @@ def mean_ci(values, level: float = 0.95) -> MeanCI:
     return MeanCI(m, m - half, m + half, n)
 
 
+def clip_ci(ci: MeanCI, bounds: tuple[float, float]) -> MeanCI:
+    """``ci`` with its interval clipped to ``bounds``, the range the metric can take."""
+    lo, hi = bounds
+    return MeanCI(ci.mean, max(ci.low, lo) if np.isfinite(ci.low) else ci.low,
+                  min(ci.high, hi) if np.isfinite(ci.high) else ci.high, ci.n)
+
+
+#: Bootstrap of a ratio of means: resamples and the seed of its ``numpy`` Generator (fixed, so a
+#: report is the same every time it is built from the same rows).
+RESAMPLES, BOOTSTRAP_SEED = 2000, 0
+
+
+def ratio_ci(num, den, *, paired: bool, level: float = 0.95, resamples: int = RESAMPLES,
+             seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+    """Percentile-bootstrap CI of ``mean(num) / mean(den)``.
+
+    ``paired``: ``num[i]`` and ``den[i]`` belong together (the same person under two conditions)
+    and are resampled together; otherwise each side is resampled on its own. (NaN, NaN) where
+    a resample's ratio is undefined (0 / 0) or there are no values.
+    """
+    num = np.asarray(num, dtype=np.float64)
+    den = np.asarray(den, dtype=np.float64)
+    if paired and len(num) != len(den):
+        raise ValueError("paired ratio: num and den must have the same length")
+    if len(num) == 0 or len(den) == 0:
+        return (np.nan, np.nan)
+    rng = np.random.default_rng(seed)
+    chunk = max(1, 2_000_000 // max(len(num), len(den)))  # resamples drawn at once (memory)
+    ratios = []
+    for start in range(0, resamples, chunk):
+        m = min(chunk, resamples - start)
+        i = rng.integers(0, len(num), size=(m, len(num)))
+        j = i if paired else rng.integers(0, len(den), size=(m, len(den)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratios.append(num[i].mean(axis=1) / den[j].mean(axis=1))
+    r = np.concatenate(ratios)
+    if np.isnan(r).any():
+        return (np.nan, np.nan)
+    lo, hi = np.quantile(r, [(1 - level) / 2, (1 + level) / 2], method="inverted_cdf")
+    return float(lo), float(hi)
+
+
 def wilcoxon_p(differences) -> float:
     """Two-sided p of the Wilcoxon signed-rank test of paired differences (NaN if all are zero)."""
     from scipy import stats
@@ -65,16 +107,20 @@ def wilcoxon_p(differences) -> float:
     return float(stats.wilcoxon(d, zero_method="wilcox", alternative="two-sided").pvalue)
 
 
+MINUS = "−"
+
+
 def fmt(x: float, digits: int = 3) -> str:
-    """A number for a sentence: 3 significant digits, scientific below 1e-3 (never "-0")."""
+    """A number for a sentence: 3 significant digits, scientific below 1e-3, a true minus sign "−"
+    (never "−0")."""
     if x is None or not np.isfinite(x):
         return "n/a"
     if x == 0:
         return "0"
     if abs(x) < 1e-3 or abs(x) >= 1e5:
-        return f"{x:.{max(digits - 1, 0)}e}"
+        return f"{x:.{max(digits - 1, 0)}e}".replace("-", MINUS)
     s = f"{x:.{digits}g}"
-    return "0" if float(s) == 0 else s
+    return "0" if float(s) == 0 else s.replace("-", MINUS)
 
 
 def fmt_p(p: float) -> str:

@@ -20,6 +20,8 @@ class Sweep:
         rows: the rows of the finished tasks (the study's schema).
         timings: one row per finished task (``wall_time_s``, ``set_solve_time_s``, ...).
         done, failed, total: task counts (failed excludes tasks that later finished).
+        runs: the records in ``runs/*.json``, one per invocation of ``experiment run`` (engine,
+            scheduler, workers, tasks_to_run, ...), oldest first; unreadable ones are skipped.
     """
 
     root: Path
@@ -29,6 +31,7 @@ class Sweep:
     done: int
     failed: int
     total: int
+    runs: tuple[dict[str, Any], ...] = ()
 
     @property
     def study(self) -> str:
@@ -43,10 +46,57 @@ class Sweep:
         return self.total - self.done
 
     @property
+    def working_runs(self) -> list[dict[str, Any]]:
+        """The runs that had tasks to run (those that can have written rows)."""
+        return [r for r in self.runs if (r.get("tasks_to_run") or 0) > 0]
+
+    def shared_machine(self) -> str | None:
+        """Why a task's timings may have shared the machine with other tasks (a clause), or None if
+        every run that had tasks to run used one local worker; not None where no run is recorded."""
+        runs = self.working_runs
+        if not runs:
+            return ("the sweep records no run with tasks to run (`runs/*.json`), so whether other tasks "
+                    "shared the machine with the timed ones is unknown")
+        many = [r for r in runs if r.get("scheduler") or (r.get("workers") or 1) > 1]
+        if not many:
+            return None
+        return (f"tasks ran side by side ({workers_text(many)}), so other tasks' work shared the "
+                "machine with the timed ones")
+
+    @property
     def task_time_s(self) -> float:
         if "wall_time_s" not in getattr(self.timings, "columns", ()):
             return 0.0
         return float(self.timings["wall_time_s"].sum())
+
+
+def workers_text(runs) -> str:
+    """``"a run with 2 local workers and 3 tasks to run; a run on the Dask scheduler tcp://..."``"""
+    parts = []
+    for r in runs:
+        tasks = r.get("tasks_to_run")
+        todo = f"{tasks} task{'s' if tasks != 1 else ''} to run" if tasks is not None else ""
+        if r.get("scheduler"):
+            parts.append(f"a run on the Dask scheduler {r['scheduler']}" + (f" with {todo}" if todo else ""))
+        else:
+            w = r.get("workers")
+            parts.append(f"a run with {w if w is not None else 'an unrecorded number of'} local worker"
+                         f"{'' if w == 1 else 's'}" + (f" and {todo}" if todo else ""))
+    return "; ".join(parts)
+
+
+def _runs(root: Path) -> tuple[dict[str, Any], ...]:
+    import json
+
+    out = []
+    for path in sorted((root / "runs").glob("*.json")):
+        try:
+            record = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            continue
+        if isinstance(record, dict):
+            out.append(record)
+    return tuple(sorted(out, key=lambda r: str(r.get("started", ""))))
 
 
 def _table(store: Store, table: str, keys: set[str], sort_by: list[str]):
@@ -66,8 +116,7 @@ def read_sweep(root, sort_by: tuple[str, ...] = ()) -> Sweep:
     Raises InputError if ``root`` holds no manifest or no finished task.
     """
     root = Path(root)
-    if not root.is_dir():
-        raise InputError(f"{root}: not a directory (expected a sweep directory with {MANIFEST})")
+    check_directory(root)
     store = Store(root)
     manifest = store.read_manifest()
     if not isinstance(manifest, dict) or "study" not in manifest or "task_keys" not in manifest:
@@ -80,7 +129,15 @@ def read_sweep(root, sort_by: tuple[str, ...] = ()) -> Sweep:
         raise InputError(f"{root / 'rows'}: no rows yet ({len(done)} of {len(keys)} tasks done); "
                          "nothing to report")
     timings = _table(store, "timings", done, ["task"])
-    return Sweep(root, manifest, rows, timings, len(done), len(failed), len(keys))
+    return Sweep(root, manifest, rows, timings, len(done), len(failed), len(keys), _runs(root))
+
+
+def check_directory(root: Path) -> None:
+    """A one-line InputError unless ``root`` is an existing directory."""
+    if not root.exists():
+        raise InputError(f"{root}: does not exist (expected a sweep directory with {MANIFEST})")
+    if not root.is_dir():
+        raise InputError(f"{root}: not a directory (expected a sweep directory with {MANIFEST})")
 
 
 def require_columns(sweep_or_rows, columns, where: str) -> None:

@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .parts import Table
-from .stats import METRICS, mean_ci
+from .stats import METRIC_RANGE, METRICS, clip_ci, fmt, mean_ci
 
 ALPHA = 0.05
 CONSTANT = "n/a (constant)"
@@ -103,13 +103,14 @@ def means_table(name: str, title: str, caption: str, frame, by: list[str],
         shown = dict(zip(by, key, strict=True))
         rec = dict(shown)
         for col, label in metrics.items():
-            ci = mean_ci(g[col])
-            shown[label] = (f"{ci.mean:.3g} [{ci.low:.3g}, {ci.high:.3g}]" if np.isfinite(ci.half)
-                            else f"{ci.mean:.3g} [n/a: n = {ci.n}]")
+            ci = clip_ci(mean_ci(g[col]), METRIC_RANGE.get(col, (-np.inf, np.inf)))
+            shown[label] = (f"{fmt(ci.mean)} [{fmt(ci.low)}, {fmt(ci.high)}]" if np.isfinite(ci.half)
+                            else f"{fmt(ci.mean)} [n/a: n = {ci.n}]")
             rec.update({f"{col}_mean": ci.mean, f"{col}_ci_low": ci.low, f"{col}_ci_high": ci.high})
         shown["n"] = len(g)
         rec["n"] = len(g)
         display.append(shown)
         data.append(rec)
-    return Table(name, title, caption + " Mean [95% CI] (Student t) per group.", pd.DataFrame(display),
+    return Table(name, title, caption + " Mean [95% CI] (Student t, clipped to the metric's range) per "
+                 "group.", pd.DataFrame(display),
                  pd.DataFrame(data))
