@@ -23,7 +23,7 @@ from expertise_irl.experiments.report import build_report, read_sweep
 from expertise_irl.experiments.report import claims as C
 from expertise_irl.experiments.report import conditions as cond_report
 from expertise_irl.experiments.report.output import MARKER
-from expertise_irl.experiments.report.stats import fmt, ratio_ci
+from expertise_irl.experiments.report.stats import METRICS, fmt, ratio_ci
 from expertise_irl.experiments.report.tables import (
     CONSTANT,
     factor_rows,
@@ -457,16 +457,27 @@ def test_cardinality_report_from_contract_rows(tmp_path):
 @pytest.mark.parametrize("truth_column", [True, False])
 def test_fullset_report_from_contract_rows(tmp_path, truth_column):
     rows = fullset_rows(truth_column=truth_column)
-    sweep = write_sweep(tmp_path / "full", "fullset", rows, {"source_scale": "paper"})
+    timings = [{"set_solve_time_s": 12.0, "set_solves": 1, "people": 0}, {"set_solve_time_s": 13.0,
+                                                                           "set_solves": 1, "people": 0}]
+    sweep = write_sweep(tmp_path / "full", "fullset", rows, {"source_scale": "paper"}, keys=["e000", "e001"],
+                        timings=[30.0, 50.0], timing_columns=timings)
     build_report(sweep)
     out = sweep / "report"
     assert (out / "figures" / "fig_fullset.png").is_file()
     cost = pd.read_csv(out / "tables" / "fullset_cost.csv")
     people = rows.drop_duplicates(["source", "environment", "run", "k", "group", "instance",
                                    *(["truth"] if truth_column else [])])
-    per_map = cost[cost["environment"] != "all"].set_index("environment")["people_served"]
-    assert per_map.to_dict() == {str(e): n for e, n in people.groupby("environment").size().items()}
+    per_map = cost[cost["environment"] != "all"].set_index("environment")
+    counts = {str(e): n for e, n in people.groupby("environment").size().items()}
+    assert per_map["people_served"].to_dict() == counts
+    # each map's whole task from the timings table, beside its solve, and per person
+    assert per_map["task_wall_time_s"].to_dict() == {"0": 30.0, "1": 50.0}
+    assert per_map.loc["1", "task_s_per_person"] == pytest.approx(50.0 / counts["1"])
+    assert per_map.loc["1", "set_solve_time_s"] == 13.0
     md = (out / "report.md").read_text()
+    assert "compilation of that shape on its first use" in md
+    # the source studies' max_steps at the paper scale, said once
+    assert "hit the cap (500 actions)" in md and "(the step cap)" not in md
     means = pd.read_csv(out / "tables" / "fullset_means.csv")
     if truth_column:
         gap = pd.read_csv(out / "tables" / "fullset_gap.csv").set_index(["source", "metric"])
@@ -475,8 +486,29 @@ def test_fullset_report_from_contract_rows(tmp_path, truth_column):
         out_k = at.loc[(at["truth"] == "out_of_set") & (at["set"] == "theta_k"), "policy_regret"].mean()
         out_f = at.loc[(at["truth"] == "out_of_set") & (at["set"] == "full"), "policy_regret"].mean()
         in_k = at.loc[(at["truth"] == "in_set") & (at["set"] == "theta_k"), "policy_regret"].mean()
+        in_f = at.loc[(at["truth"] == "in_set") & (at["set"] == "full"), "policy_regret"].mean()
         assert row["share_closed"] == pytest.approx(1 - (out_f - in_k) / (out_k - in_k))
-        assert "For the conditions study's out-of-set people, own Ψ_k → full set: " in md
+        assert row["in_set_full"] == pytest.approx(in_f)
+        assert gap.loc[("optimisation", "policy_regret"), "reference"] == "conditions"
+        # the reference's episodes and β*; the optimisation people are judged against another protocol
+        assert "For the conditions study's out-of-set people (18 people, 20 episodes, β* from " in md
+        assert "reference: its in-set people (18 people, 20 episodes, β* ∈ {0.01 ×" in md
+        assert ("For the optimisation study's out-of-set people (10 people, 40 episodes, β* from "
+                in md) and "reference, from another protocol: the conditions study's in-set people" in md
+        # in-set people as good under the full set as under Ψ_k: no worse; worse once their full-set
+        # regret is raised
+        same = rows.copy()
+        inset, key = same["truth"] == "in_set", ["source", "environment", "run", "k", "group", "episodes"]
+        own = same[inset & (same["set"] == "theta_k")].set_index(key)[list(METRICS)]
+        full = inset & (same["set"] == "full")
+        same.loc[full, list(METRICS)] = own.loc[pd.MultiIndex.from_frame(same.loc[full, key])].to_numpy()
+        paper = {"source_scale": "paper"}
+        md = build_report(write_sweep(tmp_path / "same", "fullset", same, paper)).read_text()
+        assert ("The conditions study's in-set people, own Ψ_k → full set: the full set leaves them no "
+                "worse") in md
+        same.loc[full, "policy_regret"] += 0.5
+        md = build_report(write_sweep(tmp_path / "worse", "fullset", same, paper)).read_text()
+        assert "the full set makes them worse on regret" in md
     else:
         assert set(means["truth"]) == {"out_of_set"}  # derived from truth_probability
         assert "No in-set people" in md
