@@ -26,7 +26,7 @@ are a subset of the full set's.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -99,11 +99,30 @@ def _people(cfg: FullsetConfig, seed: int, e: int):
 
 
 def tasks(cfg: FullsetConfig) -> list[TaskSpec]:
-    out = []
-    for e in cfg.environments():
-        side = 20.0 if cfg.source_scale != "smoke" else 6.0
-        out.append(TaskSpec(f"e{e:03d}", {"environment": e}, 10.0 + 18186 * 0.75 * side * side * 4e-6))
-    return out
+    return [TaskSpec(f"e{e:03d}", {"environment": e}, estimate_s(cfg, e)) for e in cfg.environments()]
+
+
+def estimate_s(cfg: FullsetConfig, e: int) -> float:
+    """Rough seconds of one map's task for one worker of a 2-core laptop: the full set's solve
+    (measured: 0.05 s per state for 18,186 hypotheses) plus each person's episodes scored
+    under both sets and their regret solves (measured: about 0.4 s for 20 episodes on 287 states)."""
+    n_hyp = 3031 * 6
+    total, maps = 2.0, set()
+    for source, scfg in (("conditions", cfg.conditions()), ("optimisation", cfg.optimisation())):
+        if source not in cfg.sources or e >= scfg.environments:
+            continue
+        side = (scfg.map_min_size + scfg.map_max_size) / 2
+        states = 1.3 * side * side  # the generator's maps hold about 1.3 side² states on average
+        if (scfg.map_min_size, scfg.map_max_size) not in maps:
+            maps.add((scfg.map_min_size, scfg.map_max_size))
+            total += 3.0 + 0.05 * states * n_hyp / 18186
+        if source == "conditions":
+            truths = ("in_set", "out_of_set") if cfg.in_set else ("out_of_set",)
+            episodes = [scfg.n_episodes(g, t) for g in scfg.groups for t in truths] * scfg.runs * len(scfg.ks)
+        else:
+            episodes = [scfg.episodes] * scfg.instances
+        total += sum(0.15 + n * states * 2.5e-5 for n in episodes)
+    return total
 
 
 def counts(cfg: FullsetConfig) -> dict[str, int]:
@@ -130,24 +149,28 @@ def run_task(cfg: FullsetConfig, seed: int, params: dict) -> tuple[dict[str, np.
     from ...planning import solve
 
     e = int(params["environment"])
-    solved: dict[tuple[int, int], tuple] = {}  # (min size, max size) -> (zm, mdp, full, belief, time)
+    solved: dict[tuple[int, int], tuple] = {}  # (min, max size) -> (mdp, full, belief, by_pair, time)
     cols: dict[str, list] = {}
     n_people = 0
     for source, scfg, ident, truth, thetas, theta, beta, value, trajs in _people(cfg, seed, e):
         key = (scfg.map_min_size, scfg.map_max_size)
         if key not in solved:
-            zm, mdp = cond.environment(scfg, seed, e)
+            _, mdp = cond.environment(scfg, seed, e)
             full = HypothesisSet(cond._grid(cfg.thetas, mdp.n_features), BETA_PRESETS[cfg.betas])
             t0 = time.perf_counter()
             log_policy = solve(mdp, full.theta, full.beta, model=scfg.model).log_policy  # no padding
             spent = time.perf_counter() - t0
-            solved[key] = (zm, mdp, full, DiscreteBelief.from_log_policy(full, log_policy), spent)
-        zm, mdp, full, b_full, spent = solved[key]
+            # [S*A, H]: one observed pair is one contiguous row (a gather from [H, S, A] would
+            # touch one cache line per hypothesis and pair).
+            by_pair = np.ascontiguousarray(log_policy.reshape(len(full), -1).T)
+            solved[key] = (mdp, full, DiscreteBelief.from_log_policy(full, log_policy), by_pair, spent)
+        mdp, full, b_full, by_pair, spent = solved[key]
         own = HypothesisSet(thetas, BETA_PRESETS[cfg.betas])
         rows = np.array([full.index(t, b) for t, b in zip(own.theta, own.beta, strict=True)])
         b_own = DiscreteBelief.from_log_policy(own, b_full.log_policy[rows])
-        for s, b0 in zip(SETS, (b_own, b_full), strict=True):
-            part = _score(mdp, scfg, b0, trajs, theta, beta, value)
+        inc = _episode_log_likelihoods(by_pair, mdp.n_actions, trajs)  # [N, H] of the full set
+        for s, b0, ll in zip(SETS, (b_own, b_full), (inc[:, rows], inc), strict=True):
+            part = _score(mdp, scfg, b0, ll, trajs, theta, beta, value)
             m = len(part["beta_hat"])
             part.update({
                 "seed": np.full(m, seed), "environment": np.full(m, e),
@@ -162,11 +185,22 @@ def run_task(cfg: FullsetConfig, seed: int, params: dict) -> tuple[dict[str, np.
         n_people += 1
     columns = {n: np.concatenate(v) for n, v in cols.items()}
     return columns, {"set_solve_time_s": sum(v[-1] for v in solved.values()), "set_solves": len(solved),
-                     "hypotheses_solved": sum(len(v[2]) for v in solved.values()), "people": n_people}
+                     "hypotheses_solved": sum(len(v[1]) for v in solved.values()), "people": n_people}
 
 
-def _score(mdp, scfg, belief, trajs, theta, beta, value) -> dict[str, np.ndarray]:
-    """Rows for every episode count 1..N of one person under one set (one pass)."""
+def _episode_log_likelihoods(by_pair: np.ndarray, n_actions: int, trajs) -> np.ndarray:
+    """``[N, H]`` log P(episode n | h) from the ``[S*A, H]`` log-policy (each pair counted once
+    per occurrence)."""
+    out = np.empty((trajs.n_episodes, by_pair.shape[1]))
+    for n, (s, a) in enumerate(trajs.episodes()):
+        pairs, counts = np.unique(np.asarray(s) * n_actions + np.asarray(a), return_counts=True)
+        out[n] = counts @ by_pair[pairs]  # counts >= 1: an impossible pair gives -inf, never NaN
+    return out
+
+
+def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str, np.ndarray]:
+    """Rows for every episode count 1..N of one person under one set (one pass), from each
+    episode's log-likelihood under every hypothesis of the set (``episode_ll [N, H]``)."""
     from ...hypotheses import expertise_group
     from ...metrics import cosine_similarity, expertise_distance, regret_from_values
 
@@ -175,9 +209,11 @@ def _score(mdp, scfg, belief, trajs, theta, beta, value) -> dict[str, np.ndarray
     ends = np.array([mdp.next_state[s[-1], a[-1]] for s, a in eps])
     capped = (lengths >= scfg.max_steps) & ~mdp.terminal[ends]
     truth_idx = belief.hypotheses.index(theta, beta)
-    b, beta_hat, theta_hat, p_truth = belief, [], [], []
-    for n, (s, a) in enumerate(eps):
-        b = b.update_trajectory(s, a, episode=n)
+    beta_hat, theta_hat, p_truth = [], [], []
+    total = belief.log_likelihood
+    for n, (s, _) in enumerate(eps):
+        total = total + episode_ll[n]
+        b = replace(belief, log_likelihood=total, n_observed=belief.n_observed + len(s))
         beta_hat.append(b.mean_beta)
         theta_hat.append(b.mean_theta)
         p_truth.append(np.nan if truth_idx is None else float(b.probabilities[truth_idx]))
@@ -229,7 +265,7 @@ COLUMNS = (
 
 STUDY = Study(
     name="fullset",
-    version=1,
+    version=2,
     description="beyond the paper: conditions' and optimisation's people scored with all 18,186 paper-sim "
                 "hypotheses vs their Ψ_k",
     config_type=FullsetConfig,
