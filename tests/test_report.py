@@ -23,7 +23,7 @@ from expertise_irl.experiments.report import build_report, read_sweep
 from expertise_irl.experiments.report import claims as C
 from expertise_irl.experiments.report import conditions as cond_report
 from expertise_irl.experiments.report.output import MARKER
-from expertise_irl.experiments.report.stats import METRICS, fmt, ratio_ci
+from expertise_irl.experiments.report.stats import METRICS, fmt, fmt_p, ratio_ci
 from expertise_irl.experiments.report.tables import (
     CONSTANT,
     factor_rows,
@@ -549,3 +549,6 @@ def test_why_sentences_use_a_true_minus_sign():
     got = C.correlation_claim("x", "s", "c", "p", x, -x + np.sin(x), "f", "m", claimed="negative")
     assert "is −0.9" in got.why and "-0." not in got.why
     assert fmt(-0.5) == "−0.5" and fmt(-2e-5) == "−2.00e−05" and fmt(0.25) == "0.25"
+    assert fmt_p(1.3e-14) == "1.3e−14" and fmt_p(0.031) == "0.031"
+    tiny = C.ordering_claim("x", "s", "c", "p", np.zeros(30), np.arange(1.0, 31.0), "A", "B", "q")
+    assert "e−" in tiny.why and "e-" not in tiny.why  # Wilcoxon p = 1.9e−06

@@ -126,7 +126,7 @@ def fmt(x: float, digits: int = 3) -> str:
 def fmt_p(p: float) -> str:
     if p is None or not np.isfinite(p):
         return "n/a"
-    return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}"
+    return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}".replace("-", MINUS)
 
 
 def paired(frame, index: list[str], column: str, values: str, a: str, b: str):
