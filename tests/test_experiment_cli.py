@@ -6,23 +6,8 @@ import subprocess
 import sys
 
 import pytest
-from typer.testing import CliRunner
-
-from expertise_irl.cli import app
-
-runner = CliRunner()
-
-
-def invoke(*args: str):
-    return runner.invoke(app, list(args))
-
-
-def one_line_error(result, *needles: str) -> None:
-    assert result.exit_code == 2, result.output
-    lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
-    for n in needles:
-        assert n in lines[0], lines[0]
+from cli_helpers import assert_input_error as one_line_error
+from cli_helpers import invoke, ok
 
 
 @pytest.fixture(scope="module")
@@ -121,3 +106,55 @@ def test_help_does_not_import_heavy_modules():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert "--scheduler" in proc.stdout and "--retry-failed" in proc.stdout
     assert "HEAVY []" in proc.stdout, proc.stdout
+
+
+def test_config_file_replaces_fields_and_is_recorded(tmp_path):
+    import json
+    import tomllib
+
+    from expertise_irl.experiments import load
+
+    cfg = tmp_path / "rel.toml"
+    cfg.write_text('[conditions]\nmodel = "maxent-relative"\nks = [3]\nenvironments = 1\n')
+    out = tmp_path / "sweep"
+    result = invoke("experiment", "run", "conditions", "--out", out, "--config", cfg, "--workers", "1")
+    ok(result)
+    assert f"smoke with {cfg}" in result.output
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["scale"] == "custom"
+    assert manifest["config"]["model"] == "maxent-relative" and manifest["config"]["ks"] == [3]
+    assert manifest["config"]["episodes"] == 3  # the rest is the smoke scale's
+    assert set(load(out)["k"]) == {3}
+    # The sweep's own config.toml is a valid --config: the same command resumes, nothing to run.
+    again = invoke("experiment", "run", "conditions", "--out", out, "--config", out / "config.toml",
+                   "--workers", "1")
+    ok(again)
+    assert "0 task(s) run" in again.output
+    assert tomllib.loads((out / "config.toml").read_text())["conditions"]["model"] == "maxent-relative"
+
+
+@pytest.mark.parametrize(
+    ("text", "needles"),
+    [
+        ("episodes = 'many'\n", ["episodes must be a whole number", "'many'"]),
+        ("epsiodes = 3\n", ["'epsiodes' is not a field of study 'conditions'", "episodes"]),
+        ("ks = []\n", ["ks must be a non-empty list"]),
+        ("ks = [3, 'x']\n", ["ks[1] must be a whole number"]),
+        ("model = 'softmax'\n", ["model must be one of"]),
+        ("episodes = 0\n", ["episodes must be at least 1"]),
+        ("episodes = \n", ["not a TOML file"]),
+    ],
+    ids=["type", "unknown-field", "empty-list", "list-item", "bad-model", "bad-value", "not-toml"],
+)
+def test_bad_config_file_is_one_line_error_naming_it(tmp_path, text, needles):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text)
+    out = tmp_path / "sweep"
+    line = one_line_error(invoke("experiment", "run", "conditions", "--out", out, "--config", cfg), *needles)
+    assert str(cfg) in line
+    assert not out.exists()  # refused before any directory is made
+
+
+def test_missing_config_file_is_one_line_error(tmp_path):
+    one_line_error(invoke("experiment", "run", "conditions", "--out", tmp_path / "s", "--config",
+                          tmp_path / "none.toml"), "none.toml", "no such file")

@@ -45,15 +45,20 @@ def run_cmd(
                                                   "tasks then run on its workers.")] = None,
     retry_failed: Annotated[bool, typer.Option("--retry-failed", help="Run again the tasks that "
                                                "failed before.")] = False,
+    config: Annotated[Path | None, typer.Option("--config", help="TOML file of config fields that "
+                                                "replace the scale's (e.g. model = \"maxent-relative\"; "
+                                                "a sweep's DIR/config.toml is one). The sweep's scale is "
+                                                "then recorded as `custom`.")] = None,
 ) -> None:
     """Run a sweep, or resume it: finished tasks are skipped, each task's rows land in one shard."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..experiments.engine import cores, run
+    from ..experiments.engine import config_from_toml, cores, run
     from ..experiments.studies import get_study
 
     st = get_study(study)
-    st.config(scale)  # a bad scale is reported before any directory is made
+    cfg = st.config(scale)  # a bad scale (or config file) is reported before any directory is made
+    cfg = config_from_toml(st, config, cfg) if config is not None else None
     bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TextColumn("tasks, {task.fields[rows]} rows"), TimeRemainingColumn(), console=err,
                    transient=False)
@@ -68,9 +73,10 @@ def run_cmd(
 
     where = f"Dask scheduler {scheduler}" if scheduler else f"{workers or cores()} local worker(s)"
     with bar:
-        summary = run(st, out, scale=scale, seed=seed, workers=workers, scheduler=scheduler,
+        summary = run(st, out, scale=scale, seed=seed, config=cfg, workers=workers, scheduler=scheduler,
                       retry_failed=retry_failed, on_start=on_start, on_result=on_result)
-    _say(f"{study} ({scale}, seed {seed}) on {where}: {summary.ran} task(s) run, {summary.skipped} already "
+    shown = f"{scale} with {config}" if config is not None else scale
+    _say(f"{study} ({shown}, seed {seed}) on {where}: {summary.ran} task(s) run, {summary.skipped} already "
          f"done or skipped, {summary.failed} failed, {summary.rows} rows written to {out} in "
          f"{_duration(summary.wall_time_s)}")
     if summary.failed:

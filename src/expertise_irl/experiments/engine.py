@@ -138,6 +138,58 @@ def config_from_dict(study: Study, values: dict[str, Any]):
     return study.config_type(**kwargs)
 
 
+def config_from_toml(study: Study, path, base):
+    """``base`` (a scale's config) with the fields set in the TOML file ``path`` replaced.
+
+    The file holds the fields either at the top level or in a table named after the study
+    (the form ``DIR/config.toml`` is written in, so a sweep's config can be edited and reused).
+    Every key must be a field of the study's config with a value of the field's type; the
+    config then checks its own values. Errors are one line naming the file and the field.
+    """
+    import tomllib
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: {'is a directory' if path.is_dir() else 'no such file'} (--config)")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a TOML file: {exc}") from None
+    if set(data) == {study.name} and isinstance(data[study.name], dict):
+        data = data[study.name]
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(base)}
+    changes = {}
+    for key, value in data.items():
+        if key not in fields:
+            raise InputError(f"{path}: {key!r} is not a field of study {study.name!r} "
+                             f"(fields: {', '.join(fields)})")
+        changes[key] = _typed(path, key, value, fields[key])
+    try:
+        return dataclasses.replace(base, **changes)
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
+
+
+def _typed(path, key: str, value, default):
+    """``value`` as the type of ``default`` (lists become tuples), or a one-line InputError."""
+    def kind(x) -> str:
+        return "a boolean" if isinstance(x, bool) else "a whole number" if isinstance(x, int) else \
+            "a number" if isinstance(x, float) else "a string" if isinstance(x, str) else "a list"
+
+    if isinstance(default, tuple):
+        if not isinstance(value, list) or not value:
+            raise InputError(f"{path}: {key} must be a non-empty list, got {value!r}")
+        like = default[0] if default else value[0]
+        return tuple(_typed(path, f"{key}[{i}]", v, like) for i, v in enumerate(value))
+    ok = (isinstance(value, bool) if isinstance(default, bool)
+          else isinstance(value, int) and not isinstance(value, bool) if isinstance(default, int)
+          else isinstance(value, int | float) and not isinstance(value, bool) if isinstance(default, float)
+          else isinstance(value, str))
+    if not ok:
+        raise InputError(f"{path}: {key} must be {kind(default)}, got {value!r}")
+    return float(value) if isinstance(default, float) else value
+
+
 def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
