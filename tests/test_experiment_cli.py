@@ -54,6 +54,10 @@ def test_status_lists_failures_and_time_left(tmp_path, monkeypatch):
     assert "tasks: 3 done / 4 total, 1 failed, 0 to do" in status.output
     assert "failed: e000-r000-k003: injected failure" in status.output
     monkeypatch.delenv(FAULTS_ENV)
+    # Running again without --retry-failed runs nothing, and still says the sweep is not whole.
+    again = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "1")
+    assert again.exit_code == 1, again.output
+    assert "0 task(s) run" in again.output and "1 task(s) that failed before were not retried" in again.output
     retried = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "1", "--retry-failed")
     assert retried.exit_code == 0 and "1 task(s) run" in retried.output, retried.output
     assert "0 failed" in invoke("experiment", "status", str(out)).output
@@ -75,7 +79,7 @@ def test_list_shows_every_scale_with_counts():
         (["run", "conditions", "--out", "{tmp}/x", "--workers", "0"], ["--workers"]),
         (["run", "conditions"], ["--out"]),
         (["status", "{tmp}"], ["not an experiment directory"]),
-        (["status", "{tmp}/missing"], ["not an experiment directory"]),
+        (["status", "{tmp}/missing"], ["does not exist"]),
     ],
     ids=["unknown-study", "unknown-scale", "zero-workers", "no-out", "status-not-sweep", "status-missing"],
 )
@@ -158,3 +162,32 @@ def test_bad_config_file_is_one_line_error_naming_it(tmp_path, text, needles):
 def test_missing_config_file_is_one_line_error(tmp_path):
     one_line_error(invoke("experiment", "run", "conditions", "--out", tmp_path / "s", "--config",
                           tmp_path / "none.toml"), "none.toml", "no such file")
+
+
+def test_config_table_of_another_study_and_changed_config_are_named(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[cardinality]\nruns = 2\n")
+    one_line_error(invoke("experiment", "run", "conditions", "--out", tmp_path / "s", "--config", cfg),
+                   "holds a [cardinality] table, but the study is 'conditions'")
+    big = tmp_path / "big.toml"
+    big.write_text("ks = [3031]\n")
+    one_line_error(invoke("experiment", "run", "conditions", "--out", tmp_path / "s", "--config", big),
+                   "k must be below 3031", str(big))
+    # A DIR made with one config, resumed with another: the error names the field that changed.
+    one = tmp_path / "one.toml"
+    one.write_text("ks = [3]\nenvironments = 1\n")
+    out = tmp_path / "sweep"
+    ok(invoke("experiment", "run", "conditions", "--out", out, "--config", one, "--workers", "1"))
+    two = tmp_path / "two.toml"
+    two.write_text("ks = [4]\nenvironments = 1\n")
+    one_line_error(invoke("experiment", "run", "conditions", "--out", out, "--config", two),
+                   "another config", "ks = [3] there, [4] here", "refusing to mix")
+
+
+def test_run_record_has_the_elapsed_time(sweep):
+    import json
+
+    out, _ = sweep
+    records = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
+    assert records and all(r["wall_time_s"] > 0 and r["finished"] >= r["started"] for r in records)
+    assert records[0]["tasks_run"] == records[0]["tasks_to_run"] and records[0]["tasks_failed"] == 0

@@ -79,9 +79,12 @@ def run_cmd(
     _say(f"{study} ({shown}, seed {seed}) on {where}: {summary.ran} task(s) run, {summary.skipped} already "
          f"done or skipped, {summary.failed} failed, {summary.rows} rows written to {out} in "
          f"{_duration(summary.wall_time_s)}")
-    if summary.failed:
-        _say(f"{summary.failed} task(s) failed: see `expertise-irl experiment status {out}`; "
-             "re-run them with --retry-failed")
+    if summary.failed or summary.failed_before:
+        what = (f"{summary.failed} task(s) failed" if summary.failed else "") + \
+            (", and " if summary.failed and summary.failed_before else "") + \
+            (f"{summary.failed_before} task(s) that failed before were not retried"
+             if summary.failed_before else "")
+        _say(f"{what}: see `expertise-irl experiment status {out}`; re-run them with --retry-failed")
         raise typer.Exit(1)
 
 
@@ -109,18 +112,26 @@ def status_cmd(
 
 @experiment_app.command("list")
 @handles_errors
-def list_cmd() -> None:
-    """Studies and their scales: tasks, instances, rows, solves, and an estimated time here."""
+def list_cmd(
+    workers: Annotated[int | None, typer.Option(min=1, help="Local workers to estimate for (default: one "
+                                                "per core, as `run` uses).")] = None,
+) -> None:
+    """Studies and their scales: tasks, instances, rows, solves, and an estimated time.
+
+    The estimate comes from each study's cost model (timed on a 2-core laptop) spread over the
+    local workers; it is not measured here.
+    """
     from rich.table import Table
 
     from ..experiments.engine import cores
     from ..experiments.studies import studies
 
-    n = cores()
-    table = Table(title=f"studies (estimated time with {n} local workers on this machine)")
+    n = workers or cores()
+    table = Table(title=f"studies (estimated time with {n} local worker(s), from timings on a 2-core laptop)")
     for name in ("study", "scale", "tasks", "instances", "rows", "set solves (grouped / ungrouped)",
                  "estimated time"):
-        table.add_column(name, justify="left" if name in ("study", "scale") else "right")
+        table.add_column(name, justify="left" if name in ("study", "scale") else "right",
+                         no_wrap=name in ("study", "scale"))
     for st in studies().values():
         for scale, cfg in st.scales.items():
             c = st.counts(cfg)

@@ -157,6 +157,9 @@ def config_from_toml(study: Study, path, base):
         raise InputError(f"{path}: not a TOML file: {exc}") from None
     if set(data) == {study.name} and isinstance(data[study.name], dict):
         data = data[study.name]
+    elif len(data) == 1 and isinstance(next(iter(data.values())), dict):
+        raise InputError(f"{path}: holds a [{next(iter(data))}] table, but the study is {study.name!r} "
+                         f"(write its fields at the top level or in a [{study.name}] table)")
     fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(base)}
     changes = {}
     for key, value in data.items():
@@ -203,6 +206,7 @@ class RunSummary:
     failed: int
     rows: int
     wall_time_s: float
+    failed_before: int = 0  # tasks that failed in an earlier run and were not retried
 
 
 def _manifest(study: Study, scale: str, seed: int, config, tasks: list[TaskSpec]) -> dict[str, Any]:
@@ -214,12 +218,14 @@ def _manifest(study: Study, scale: str, seed: int, config, tasks: list[TaskSpec]
             "versions": versions(), "machine": machine()}
 
 
-def _record_run(store: Store, record: dict[str, Any]) -> None:
-    """One JSON file per invocation in ``DIR/runs/`` (who ran what, where, with which versions)."""
+def _record_run(store: Store, record: dict[str, Any], path: Path | None = None) -> Path:
+    """One JSON file per invocation in ``DIR/runs/`` (who ran what, where, with which versions);
+    written when the run starts and again, with ``finished`` and ``wall_time_s``, when it ends."""
     runs = store.root / "runs"
     runs.mkdir(exist_ok=True)
-    name = f"{record['started'].replace(':', '')}-{os.getpid()}.json"
-    write_atomic(runs / name, (json.dumps(record, indent=2) + "\n").encode(), store.tmp)
+    path = path or runs / f"{record['started'].replace(':', '')}-{os.getpid()}.json"
+    write_atomic(path, (json.dumps(record, indent=2) + "\n").encode(), store.tmp)
+    return path
 
 
 def _columns_table(study: Study, columns: dict[str, np.ndarray]):
@@ -299,10 +305,11 @@ def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_f
         store.remove("failures", key)
     failed -= done
     todo = [t for t in tasks if t.key not in done and (retry_failed or t.key not in failed)]
-    _record_run(store, {"started": _now(), "engine": "dask" if scheduler else "local",
-                        "scheduler": scheduler, "workers": None if scheduler else workers,
-                        "retry_failed": retry_failed, "tasks_to_run": len(todo), "versions": versions(),
-                        "machine": machine()})
+    record = {"started": _now(), "engine": "dask" if scheduler else "local",
+              "scheduler": scheduler, "workers": None if scheduler else workers,
+              "retry_failed": retry_failed, "tasks_to_run": len(todo), "versions": versions(),
+              "machine": machine()}
+    record_path = _record_run(store, record)
     if on_start is not None:
         on_start(len(tasks), len(todo))
     kill_after = next((int(a) for k, a in faults if k == "kill-after"), None)
@@ -334,8 +341,11 @@ def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_f
             on_result(res, table.num_rows)
         if kill_after is not None and committed >= kill_after:
             _kill_self()
-    return RunSummary(len(tasks), len(tasks) - len(todo), ran, n_failed, rows,
-                      time.perf_counter() - t_start)
+    wall = time.perf_counter() - t_start
+    _record_run(store, {**record, "finished": _now(), "wall_time_s": round(wall, 3), "tasks_run": ran,
+                        "tasks_failed": n_failed}, record_path)
+    still_failed = 0 if retry_failed else len({t.key for t in tasks} & failed)
+    return RunSummary(len(tasks), len(tasks) - len(todo), ran, n_failed, rows, wall, still_failed)
 
 
 # ----------------------------------------------------------------------------- reading

@@ -120,6 +120,8 @@ class Store:
     # ------------------------------------------------------------------ manifest
     def read_manifest(self) -> dict[str, Any]:
         path = self.root / MANIFEST
+        if not self.root.exists():
+            raise InputError(f"{self.root}: does not exist (expected an experiment directory)")
         if not path.is_file():
             raise InputError(f"{self.root}: not an experiment directory (no {MANIFEST})")
         try:
@@ -139,6 +141,17 @@ class Store:
         if (root / MANIFEST).exists():
             old = self.read_manifest()
             if old.get("config_hash") != manifest["config_hash"]:
+                same_sweep = all(old.get(k) == manifest[k]
+                                 for k in ("study", "study_version", "scale", "seed"))
+                changed = [k for k in sorted(set(old.get("config", {})) | set(manifest["config"]))
+                           if old.get("config", {}).get(k) != manifest["config"].get(k)]
+                if same_sweep and changed and isinstance(old.get("config"), dict):
+                    raise InputError(
+                        f"{root}: holds study {old.get('study')!r} with another config ("
+                        + "; ".join(f"{k} = {old['config'].get(k)!r} there, {manifest['config'].get(k)!r} "
+                                    "here" for k in changed[:3])
+                        + (f"; {len(changed) - 3} more" if len(changed) > 3 else "")
+                        + "); refusing to mix results, use another --out")
                 raise InputError(
                     f"{root}: holds study {old.get('study')!r} (scale {old.get('scale')}, seed "
                     f"{old.get('seed')}, config {str(old.get('config_hash'))[:12]}), not study "

@@ -50,6 +50,27 @@ CONDITIONS = ("full", "fixed_theta", "fixed_beta")
 FEATURES = ("length", "road", "avoid", "slow", "traffic")
 
 
+@lru_cache(maxsize=4)
+def _grid(preset: str, n_features: int) -> np.ndarray:
+    from ...hypotheses import THETA_PRESETS, theta_grid
+
+    return theta_grid(THETA_PRESETS[preset], n_features)
+
+
+def check_set_sizes(thetas: str, betas: str, ks) -> None:
+    """The presets exist and every k leaves room for an out-of-set θ (k < |Θ| of the zone maps)."""
+    from ...hypotheses import BETA_PRESETS, THETA_PRESETS
+
+    if thetas not in THETA_PRESETS:
+        raise InputError(f"thetas must be one of {', '.join(THETA_PRESETS)}, got {thetas!r}")
+    if betas not in BETA_PRESETS:
+        raise InputError(f"betas must be one of {', '.join(BETA_PRESETS)}, got {betas!r}")
+    n = len(_grid(thetas, len(FEATURES)))
+    if max(ks) >= n:
+        raise InputError(f"k must be below {n} (the {thetas!r} grid's {len(FEATURES)}-feature θ directions, "
+                         f"so an out-of-set θ exists), got {max(ks)}")
+
+
 @dataclass(frozen=True)
 class ConditionsConfig:
     """Factors of the study (paper values as defaults)."""
@@ -83,6 +104,7 @@ class ConditionsConfig:
             raise InputError("need at least one environment and run, and every k >= 2")
         if self.episodes < 1 or self.low_episodes < 1:
             raise InputError("episodes must be at least 1")
+        check_set_sizes(self.thetas, self.betas, self.ks)
         from ...models import check_model
 
         check_model(self.model)
@@ -115,13 +137,6 @@ def _map(seed: int, e: int, lo: int, hi: int):
     zm = generate_map(np.random.default_rng(seed_sequence(seed, (e,))), min_size=lo, max_size=hi,
                       name=f"environment {e} (seed {seed})")
     return zm, zm.to_mdp()
-
-
-@lru_cache(maxsize=4)
-def _grid(preset: str, n_features: int) -> np.ndarray:
-    from ...hypotheses import THETA_PRESETS, theta_grid
-
-    return theta_grid(THETA_PRESETS[preset], n_features)
 
 
 def solve_padded(mdp, theta, beta, model: str = "maxent"):

@@ -48,7 +48,15 @@ import numpy as np
 
 from ...errors import InputError
 from ..engine import Column, Study, TaskSpec
-from .conditions import FEATURES, SET_COMPOSITION, _grid, environment, simulate_episodes, solve_padded
+from .conditions import (
+    FEATURES,
+    SET_COMPOSITION,
+    _grid,
+    check_set_sizes,
+    environment,
+    simulate_episodes,
+    solve_padded,
+)
 
 if TYPE_CHECKING:
     from ...demos import Trajectories
@@ -100,6 +108,7 @@ class OptimisationConfig:
             raise InputError("birl_iterations, map_starts and nuts_chains must be at least 1")
         get_prior(self.prior)
         check_model(self.model)
+        check_set_sizes(self.thetas, self.betas, (self.k,))
 
     @property
     def episodes(self) -> int:
