@@ -1,4 +1,4 @@
-"""TabularMDP validation and the .npz archive (DESIGN §1, §2)."""
+"""TabularMDP validation and the .npz archive ."""
 
 from __future__ import annotations
 

@@ -194,6 +194,6 @@ def test_policy_regret_uses_theta_hat_as_given(corridor, beta):
 @pytest.mark.parametrize("c", [0.5, 3.0])
 def test_policy_regret_invariant_to_joint_rescaling(corridor, c):
     """(θ, β) → (cθ, cβ) scales every soft value by c, so the normalised regret is unchanged
-    when θ*, β* and θ̂ are rescaled together (DESIGN §1, scale invariance)."""
+    when θ*, β* and θ̂ are rescaled together (scale invariance)."""
     r = policy_regret(corridor, THETA_STAR, 0.5, THETA_HAT)
     assert policy_regret(corridor, c * THETA_STAR, c * 0.5, c * THETA_HAT) == pytest.approx(r, abs=SOLVE_ABS)

@@ -20,7 +20,7 @@ State space (a lattice).
     parameters, ``beta_step`` and ``lam``.
 
     ``variant="simplex"``: θ = δ·m with Σm = 1/δ (must be an integer), i.e. ‖θ‖₁ = 1,
-    which fixes the scale as DESIGN §1 recommends; ``theta_max`` and ``lam`` are unused.
+    which fixes the scale (only θ/β enters the likelihood); ``theta_max`` and ``lam`` are unused.
 
 Start. m is drawn uniformly over the lattice points of the variant (exactly, by counting
 points with a small dynamic programme and drawing coordinates in sequence; for the box a

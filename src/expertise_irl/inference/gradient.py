@@ -1,7 +1,7 @@
 """Gradient-based estimators on the continuous space: MAP by quasi-Newton (NUTS: :mod:`.nuts`).
 
-The parameters are θ on the unit simplex (‖θ‖₁ = 1 fixes the scale, DESIGN's scale
-invariance) and β > 0. Both optimisers work on unconstrained coordinates,
+The parameters are θ on the unit simplex (‖θ‖₁ = 1 fixes the scale: (θ, β) and (cθ, cβ)
+behave alike) and β > 0. Both optimisers work on unconstrained coordinates,
 θ = softmax(z) and β = exp(b), with the log-density and its exact gradient from
 :func:`expertise_irl.likelihood.make_log_likelihood`.
 
