@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import shutil
 
 import numpy as np
@@ -68,9 +69,22 @@ def test_report_from_the_smoke_sweep_has_every_file(smoke):
     # the header comes from the manifest and the timings
     assert "| study | conditions (version" in md and "| tasks | 4 done / 4 total, 0 failed |" in md
     assert "| rows | 168 |" in md and "Warning" not in md
+    # smoke says at the top, in bold, that its verdicts mean nothing, and warns the same
+    people = read_sweep(sweep).rows.drop_duplicates(cond_report.PERSON).shape[0]
+    line = (f"**Scale `smoke` is a test of the machinery: its verdicts rest on a handful of people "
+            f"(n = {people}) and mean nothing.**")
+    assert md.splitlines()[2] == line
+    assert (f"warning: Scale smoke is a test of the machinery: its verdicts rest on a handful of people "
+            f"(n = {people}) and mean nothing.") in result.stderr
+    assert "the sum of the wall times of the 4 finished tasks" in md
+    assert "not the sweep's elapsed time" in md
     for rule in ("Ordering claims", "Ratio claims", "Share claims", "Threshold claims"):
         assert rule in md
-    assert "## Capped episodes" in md
+    assert "## Capped episodes" in md and "DESIGN" not in md
+    # Fig. 2: what its y scale says of a group
+    assert ("The largest distance between two β values of the same group is 0.08 for high (0.01, 0.09), "
+            "0.5 for medium (0.5, 1) and 5 for low (5, 10): a |β* − β̂| above it means β̂ left β*'s "
+            "group") in md and "only within a group" not in md
 
 
 def test_report_md_claims_match_claims_csv(smoke):
@@ -90,6 +104,18 @@ def test_a_previous_report_is_replaced_and_user_files_kept(smoke, tmp_path):
     assert (out / "figures" / "fig2.png").read_bytes().startswith(b"\x89PNG")
     assert (out / "notes.txt").read_text() == "mine"
     assert "notes.txt" not in (out / MARKER).read_text()
+
+
+def test_rebuilding_a_report_leaves_its_files_as_they_were(smoke, tmp_path):
+    """The marker holds no time: a report rebuilt from the same rows is byte for byte the same."""
+    sweep, _ = smoke
+    out = tmp_path / "rep"
+    ok(invoke("experiment", "report", sweep, "--out", out))
+    first = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    marker = json.loads((out / MARKER).read_text())
+    assert set(marker) == {"written_by", "study", "files"} and marker["study"] == "conditions"
+    ok(invoke("experiment", "report", sweep, "--out", out))
+    assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == first
 
 
 def test_foreign_non_empty_out_is_refused(smoke, tmp_path):
@@ -131,7 +157,8 @@ def test_unfinished_sweep_reports_with_a_warning(smoke, tmp_path):
     ok(result)
     assert "warning: 1 of 4 tasks are not finished" in result.stderr
     md = (part / "report" / "report.md").read_text()
-    assert md.splitlines()[2].startswith("> **Warning: unfinished sweep.** 1 of 4 tasks")
+    assert md.splitlines()[2].startswith("**Scale `smoke` is a test of the machinery")
+    assert md.splitlines()[4].startswith("> **Warning: unfinished sweep.** 1 of 4 tasks")
     assert "| tasks | 3 done / 4 total, 0 failed |" in md
 
 
@@ -182,7 +209,8 @@ def test_vi_d_ratio_verdict_at_the_band_edges(smoke):
     out = at & (rows["truth"] == "out_of_set")
     rows.loc[out, "policy_regret"] = np.resize([0.0, 0.0, 0.0, 0.0, 3.0, 6.0], out.sum())
     got = _by_id(cond_report.claims(rows, 3))["VI-D-policy_regret"]
-    assert got.value == pytest.approx(6.0) and got.verdict == C.DIFFERS and "inconclusive" in got.why
+    assert got.value == pytest.approx(6.0) and got.verdict == C.DIFFERS
+    assert got.why.startswith("inconclusive: ") and got.why.endswith("the CI includes 1.")
 
 
 def test_ratio_verdict_rule():
@@ -230,13 +258,18 @@ def test_ratio_claims_near_1_and_in_the_band():
     assert same.value == 1.0 and same.verdict == C.NOT_REPRODUCED
     noisy = _ratio([1.5, 0.5, 1.6, 0.6, 1.4, 0.7, 1.2, 0.66], ones)  # ratio 1.02, CI across 1
     assert noisy.value == pytest.approx(1.02)
-    assert noisy.verdict == C.DIFFERS and "inconclusive" in noisy.why
+    assert noisy.verdict == C.DIFFERS and noisy.why.startswith("inconclusive: ")
     assert noisy.ci_low < 1 < noisy.ci_high
     tight = _ratio([1.49, 1.51] * 4, ones)  # 1.5× with every pair at 1.49 or 1.51
     assert tight.verdict == C.REPRODUCED and 1.49 <= tight.ci_low <= tight.ci_high <= 1.51
     assert "1.5× [1.49, 1.51]" in tight.ours
     few = _ratio([1.5] * 5, np.ones(5))  # 5 pairs: too few for a CI
-    assert few.verdict == C.DIFFERS and "n/a: n < 6" in few.ours and "inconclusive" in few.why
+    assert few.verdict == C.DIFFERS and "n/a: n < 6" in few.ours and few.why.startswith("inconclusive: ")
+    wrong_size = _ratio([3.0] * 8, ones)  # 3× against a claimed 1.5×, CI [3, 3]: not inconclusive
+    assert wrong_size.verdict == C.DIFFERS and not wrong_size.why.startswith("inconclusive")
+    ours = C.ratio_claim("x", "s", "c", "p", [1.5, 0.5, 1.6, 0.6, 1.4, 0.7, 1.2, 0.66], ones, "a", "b", "q",
+                         1.5, paired=True, who="people", judged=False)
+    assert ours.verdict == C.NOT_JUDGED and ours.why.endswith("the CI includes 1: inconclusive.")
     worse = _ratio(0.8 * ones, ones)
     assert worse.verdict == C.NOT_REPRODUCED and "against the claim" in worse.why
     got = _ratio([2.0, 4.0] * 3, np.ones(6), target=3.0)
@@ -280,6 +313,7 @@ def test_vi_e_share_and_threshold_follow_the_rows(smoke):
     rows.loc[full_in & (rows["group_true"] == "high"), "policy_regret"] = 0.06
     got = _by_id(cond_report.claims(rows, 3))["VI-E-regret"]
     assert got.value <= 0.05 and got.verdict == C.DIFFERS  # all at most 0.05, the high group not
+    assert not got.why.startswith("inconclusive")  # a group above the threshold: not a matter of n
     rows.loc[full_in, "policy_regret"] = 0.2
     assert _by_id(cond_report.claims(rows, 3))["VI-E-regret"].verdict == C.NOT_REPRODUCED
 
@@ -288,7 +322,11 @@ def test_ordering_rule_not_significant_is_differs():
     a = np.array([1.0, 2.0, 3.0, 4.0])
     got = C.ordering_claim("x", "s", "c", "p", a - 0.1, a, "A", "B", "q", claimed="below")
     assert got.verdict == C.DIFFERS  # right sign, 4 pairs: Wilcoxon p = 0.125
-    assert got.value == pytest.approx(-0.1)
+    assert got.value == pytest.approx(-0.1) and got.why.startswith("inconclusive: ")
+    assert not C.ordering_claim("x", "s", "c", "p", a + 0.1, a, "A", "B", "q").why.startswith("inconclusive")
+    share = C.share_claim("x", "s", "c", "p", [True, True, False], "people")  # 2 of 3, p = 0.5
+    assert share.verdict == C.DIFFERS and share.why.startswith("inconclusive: ")
+    assert not C.share_claim("x", "s", "c", "p", [True] * 10, "people").why.startswith("inconclusive")
 
 
 # ------------------------------------------------------------------------------- Pearson
@@ -411,6 +449,24 @@ def test_optimisation_report_from_contract_rows(tmp_path):
     assert f"mean ‖θ̂‖₁ is {fmt(BOX_L1)}" in md and "not the chain's mean of β/‖θ‖₁" in md
     assert "| runs | 1 recorded in `runs/`: a run with 1 local worker and 3 tasks to run |" in md
     assert "one worker" not in md
+    assert "| elapsed time | not recorded (no `wall_time_s` in `runs/*.json`) |" in md
+    assert "Scale `smoke`" not in md  # scale custom
+
+
+@pytest.mark.parametrize("walls, expect", [
+    ([12.5, 200.0], "212.5 s (3.5 min): the sum of the elapsed times of the 2 invocations of "
+                    "`experiment run`"),
+    ([12.5, None, "x"], "12.5 s: the sum of the elapsed times of the 1 of 3 invocations of `experiment run` "
+                        "that record it (2 without `wall_time_s`)"),
+    ([7200.0], "7200.0 s (2.0 h): the sum of the elapsed times of the 1 invocation of `experiment run`")])
+def test_header_gives_the_runs_elapsed_time_where_recorded(tmp_path, walls, expect):
+    runs = [run_record(**({"wall_time_s": w} if w is not None else {})) for w in walls]
+    sweep = write_sweep(tmp_path / "opt", "optimisation", optimisation_rows(instances=2), {"max_steps": 500},
+                        runs=runs, timings=[3.0, 4.0])
+    md = build_report(sweep).read_text()
+    assert f"| elapsed time | {expect} (`wall_time_s` in `runs/*.json`) |" in md
+    assert ("| task wall time | 7.0 s: the sum of the wall times of the 2 finished tasks (`wall_time_s` in "
+            "`timings/`); tasks on parallel workers overlap, so this is not the sweep's elapsed time |") in md
 
 
 @pytest.mark.parametrize("run, shared", [
@@ -477,7 +533,14 @@ def test_fullset_report_from_contract_rows(tmp_path, truth_column):
     md = (out / "report.md").read_text()
     assert "compilation of that shape on its first use" in md
     # the source studies' max_steps at the paper scale, said once
-    assert "hit the cap (500 actions)" in md and "(the step cap)" not in md
+    assert "hits the cap (500 actions)" in md and "(the step cap)" not in md
+    capped = md.split("## Capped episodes")[1].split("\n\n")[1]
+    pops = ["the conditions study's out-of-set people", "the optimisation study's out-of-set people"]
+    if truth_column:
+        pops.insert(0, "the conditions study's in-set people")
+    for who in pops:  # one sentence on the shares, one on the β distances
+        assert capped.count(f"For {who}, most episodes are capped") == 1
+        assert capped.count(f"For {who}: ") == 1
     means = pd.read_csv(out / "tables" / "fullset_means.csv")
     if truth_column:
         gap = pd.read_csv(out / "tables" / "fullset_gap.csv").set_index(["source", "metric"])
@@ -537,11 +600,34 @@ def test_capped_shares_and_the_effect_text_speak_of_the_same_people(smoke):
     last = rows[rows["condition"] == "full"].sort_values("episodes").groupby(cond_report.PERSON).tail(1)
     inset = last[last["truth"] == "in_set"].groupby("group_true")[["n_capped", "episodes"]].sum()
     shares = {g: inset.loc[g, "n_capped"] / inset.loc[g, "episodes"] for g in inset.index}
-    sentence = text.split("in-set people: ")[1].split(";")[0]
+    sentence = text.split("For in-set people, ")[1].split(". ")[0]
     for g, v in shares.items():
-        assert f"{g} {v:.0%}" in sentence
-        assert f"× ({v:.0%} of their episodes capped)" in text.split("Per expertise group of the in-set")[1]
-    assert "hit the cap (60 actions)" in text  # conditions smoke's max_steps
+        assert f"{g} ({v:.0%})" in sentence or f"{g} {v:.0%}" in sentence
+        assert f"× ({v:.0%} of episodes capped)" in text.split("per expertise group of the in-set")[1]
+    assert "hits the cap (60 actions)" in text  # conditions smoke's max_steps
+    assert "see the README, 'A property of the model worth knowing'" in text and "DESIGN" not in text
+
+
+def _capped_text(shares: dict[str, dict[str, float]]) -> str:
+    from expertise_irl.experiments.report.capped import capped_section
+
+    last = pd.DataFrame([{"truth": t, "group_true": g, "episodes": 100, "n_capped": round(100 * v)}
+                         for t, per in shares.items() for g, v in per.items()])
+    return capped_section(last, "", by=["truth"], max_steps=500).text
+
+
+def test_capped_text_says_one_sentence_per_population():
+    text = _capped_text({"in_set": {"high": 0.3, "medium": 0.99, "low": 1.0},
+                         "out_of_set": {"high": 0.55, "medium": 0.97, "low": 1.0}})
+    assert ("For in-set people, most episodes are capped at medium (99%) and low (100%) expertise, at "
+            "most half at high (30%).") in text
+    assert ("For out-of-set people, most episodes are capped at every expertise level (high 55%, "
+            "medium 97%, low 100%).") in text
+    assert "An episode that hits the cap (500 actions) ends without reaching the goal" in text
+    few = _capped_text({"in_set": {"high": 0.1, "medium": 0.5}, "out_of_set": {"medium": 0.8, "low": 1.0}})
+    assert ("For in-set people, no expertise group has most of its episodes capped (high 10%, "
+            "medium 50%).") in few
+    assert "For out-of-set people, most episodes are capped at medium (80%) and low (100%) expertise." in few
 
 
 def test_why_sentences_use_a_true_minus_sign():

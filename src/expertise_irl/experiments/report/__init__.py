@@ -45,9 +45,10 @@ def build_report(root, out=None, *, on_warning: Callable[[str], None] | None = N
     """Build the report of the sweep in ``root`` into ``out`` (default ``root/report``).
 
     Returns the path of ``report.md``. ``on_warning`` is called with one line per problem that
-    does not stop the report (e.g. tasks still unfinished).
+    does not stop the report (a sweep at scale ``smoke``, whose verdicts mean nothing; tasks still
+    unfinished).
     """
-    from .markdown import unfinished_warning
+    from .markdown import smoke_warning, unfinished_warning
     from .output import write
 
     root = Path(root)
@@ -56,7 +57,8 @@ def build_report(root, out=None, *, on_warning: Callable[[str], None] | None = N
     module, sort_by = REPORTS[study]
     sweep = read_sweep(root, sort_by)
     report = import_module(f"{__name__}.{module}").build(sweep)
-    warn = unfinished_warning(sweep)
-    if warn and on_warning is not None:
-        on_warning(warn)
-    return write(report, sweep, out)
+    path = write(report, sweep, out)
+    for warn in (smoke_warning(report, sweep), unfinished_warning(sweep)):
+        if warn and on_warning is not None:
+            on_warning(warn)
+    return path

@@ -76,26 +76,40 @@ def capped_section(last, effect: str, *, by: list[str] | None = None, model: str
         key = dict(zip(by, key if isinstance(key, tuple) else (key,), strict=True))
         share = dict(zip(g["group_true"], g["share_capped"], strict=True))
         pops.append((population(key) if key else everyone, share))
-    shares = "; ".join(f"{who}: " + ", ".join(f"{g} {v:.0%}" for g, v in share.items())
-                       for who, share in pops)
-    model_text = ("the paper's model (maxent)" if model in (None, "maxent")
-                  else f"the {model} model (not the paper's maxent)")
-    the_cap = f"the cap ({cap})" if cap else "the cap"
-    text = (f"Share of episodes that hit {the_cap} per expertise group of β*, {shares}. Under {model_text} "
-            "a person is paid for randomness and the goal is worth 0 once reached, so simulated people "
-            "whose β is large next to their weights prefer to keep moving and rarely reach the goal "
-            "(DESIGN §1). ")
-    heavy = [(who, [g for g, v in share.items() if v > 0.5]) for who, share in pops]
-    heavy = [(who, gs) for who, gs in heavy if gs]
-    if heavy:
-        text += ("Here most episodes are capped for " + "; ".join(f"{_and(gs)} expertise ({who})"
-                                                              for who, gs in heavy)
-                 + ": those demonstrations stop at the cap without reaching the goal; they are not "
-                 "goal-directed paths. ")
-    else:
-        text += "Here no group has most of its episodes capped. "
+    text = (f"An episode that hits {f'the cap ({cap})' if cap else 'the cap'} ends without reaching the "
+            "goal: it is not a goal-directed path. ")
+    text += " ".join(population_sentence(who, share) for who, share in pops) + " "
+    text += MODEL_NOTE + (" " if model in (None, "maxent") else
+                          f" This sweep's people follow the `{model}` model instead. ")
     text += effect
     return Section("Capped episodes", text.strip(), table)
+
+
+#: Why episodes are capped under the paper's model, and where the README says more.
+MODEL_NOTE = ("Under the paper's model (maxent) a person is paid for randomness and the goal is worth 0 "
+              "once reached, so simulated people whose β is large next to their weights prefer to keep "
+              "moving and rarely reach the goal (see the README, 'A property of the model worth "
+              "knowing').")
+
+
+def population_sentence(who: str, share: dict[str, float]) -> str:
+    """One sentence on one population's capped shares, e.g. "For in-set people, most episodes are
+    capped at medium (99%) and low (100%) expertise, at most half at high (30%)."."""
+    heavy = [g for g, v in share.items() if v > 0.5]
+    light = [g for g in share if g not in heavy]
+    listed = ", ".join(f"{g} {v:.0%}" for g, v in share.items())
+
+    def groups(gs):
+        return _and([f"{g} ({share[g]:.0%})" for g in gs])
+
+    if not heavy:
+        return f"For {who}, no expertise group has most of its episodes capped ({listed})."
+    if light:
+        return (f"For {who}, most episodes are capped at {groups(heavy)} expertise, at most half at "
+                f"{groups(light)}.")
+    if len(heavy) == len(GROUPS):
+        return f"For {who}, most episodes are capped at every expertise level ({listed})."
+    return f"For {who}, most episodes are capped at {groups(heavy)} expertise."
 
 
 def _and(names: list[str]) -> str:

@@ -66,6 +66,7 @@ def build(sweep) -> Report:
         f"Full set only, k ∈ {{{', '.join(map(str, ks))}}} (|Ψ_k| = 6k), "
         f"{sweep.config.get('environments', 1)} environment(s), {n} episodes; observation model `{model}`"
         + (" (the paper's)." if model == "maxent" else " (not the paper's maxent)."))
+    report.people = len(rows.drop_duplicates(PERSON))
     report.claims = claims(at_n, n)
     report.figures = [figure(at_n, n)]
     report.tables.append(pearson_table(
@@ -94,8 +95,8 @@ def capped_effect(at_n, last) -> str:
         sub = inn[inn["group_true"] == g]
         if len(sub):
             cell = pearson_cell(sub["n_hypotheses"], sub["policy_regret"])
-            parts.append(f"{g} ρ = {cell.text}, mean regret {fmt(sub['policy_regret'].mean())} "
-                         f"({shares.get(g, float('nan')):.0%} of their episodes capped)")
+            parts.append(f"{g} ρ = {cell.text} (mean regret {fmt(sub['policy_regret'].mean())}, "
+                         f"{shares.get(g, float('nan')):.0%} of episodes capped)")
     if not parts:
         return ""
     return ("Table III's in-set regret row per expertise group: " + "; ".join(parts) + ". For a person with "

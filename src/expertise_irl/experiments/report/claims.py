@@ -4,19 +4,21 @@ Every claim gives a :class:`ClaimResult`: the paper's number, ours, a verdict an
 built from the numbers. The verdict rules (also printed in each report):
 
 - ordering ("A below B"): *reproduced* if the mean paired difference has the claimed sign and a
-  two-sided Wilcoxon signed-rank test gives p < 0.05; *differs* if the sign is right but p ≥ 0.05;
-  *not reproduced* if the sign is wrong (or every difference is zero).
+  two-sided Wilcoxon signed-rank test gives p < 0.05; *differs* if the sign is right but p ≥ 0.05
+  (inconclusive); *not reproduced* if the sign is wrong (or every difference is zero).
 - ratio ("≈ X×"): the ratio of means with a 95% percentile-bootstrap CI (paired where the rows
   pair). *reproduced* if the ratio is within [X/1.5, 1.5·X] and the CI excludes 1 on the claimed
-  side; *differs* if the CI excludes 1 on the claimed side but the ratio is outside the band, or
-  if the CI includes 1 or cannot be computed (inconclusive); *not reproduced* if the whole CI
-  lies on the other side of 1.
+  side; *differs* if the CI excludes 1 on the claimed side but the ratio is outside the band (right
+  direction, wrong size), or if the CI includes 1 or cannot be computed (inconclusive); *not
+  reproduced* if the whole CI lies on the other side of 1.
   "≈ m orders of magnitude" uses the log band [10^(m−0.5), 10^(m+0.5)] instead.
 - share ("most"): *reproduced* if the share is above 1/2 and a one-sided binomial test against 1/2
-  gives p < 0.05; *differs* if above 1/2 with p ≥ 0.05; *not reproduced* if at most 1/2.
+  gives p < 0.05; *differs* if above 1/2 with p ≥ 0.05 (inconclusive); *not reproduced* if at most 1/2.
 - threshold ("≈ 0 by n episodes"): *reproduced* if the mean is at most the threshold in every group;
   *differs* if the mean over all groups is but some group's is not; *not reproduced* otherwise.
 - correlation ("ρ > 0, significant"): as ordering, with Pearson's p in place of Wilcoxon's.
+
+The why of an inconclusive *differs* starts with "inconclusive:" (:data:`INCONCLUSIVE`).
 
 A claim is *not judged (ours)* where the number is for one of our methods, beside the paper's,
 and *not judged* where the rows cannot judge it (the "why" says why, e.g. timings taken while
@@ -42,8 +44,11 @@ REPRODUCED, DIFFERS, NOT_REPRODUCED = "reproduced", "differs", "not reproduced"
 NOT_JUDGED, WITHHELD, NO_DATA = "not judged (ours)", "not judged", "n/a (no data)"
 #: Every verdict a claim can get.
 VERDICTS = (REPRODUCED, DIFFERS, NOT_REPRODUCED, NOT_JUDGED, WITHHELD, NO_DATA)
-#: What the verdicts other than the rules' three mean (printed under the rules where they occur).
+#: What a verdict means beyond its rule (printed under the rules where the verdict occurs).
 VERDICT_NOTES = {
+    DIFFERS: "differs: either the rows cannot tell (not significant, a CI that includes 1, or too few "
+             "rows for a CI), and then its why starts with \"inconclusive:\"; or the direction is right "
+             "but not the claimed size (for threshold claims: some group above the threshold).",
     NOT_JUDGED: "not judged (ours): the same number for one of our methods, beside the paper's; the "
                 "paper makes no claim about it.",
     WITHHELD: "not judged: the rows cannot judge this claim; the why says what is missing.",
@@ -53,29 +58,30 @@ VERDICT_NOTES = {
 RULES = {
     "ordering": "Ordering claims (A below/above B): reproduced if the mean paired difference has the "
                 "claimed sign and a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) gives "
-                "p < 0.05; differs if the sign is right but p ≥ 0.05; not reproduced if the sign is "
-                "wrong or every difference is zero.",
+                "p < 0.05; differs if the sign is right but p ≥ 0.05 (inconclusive); not reproduced if "
+                "the sign is wrong or every difference is zero.",
     "ratio": f"Ratio claims (≈ X×): our ratio of means, with a 95% percentile-bootstrap CI "
              f"({RESAMPLES} resamples, numpy Generator seed {BOOTSTRAP_SEED}; rows that pair, the same "
              "people or instances under both, are resampled as pairs, other rows each side on its "
              f"own). Reproduced if the ratio lies within [X/{BAND}, {BAND}·X] and the CI excludes 1 on "
              "the claimed side; differs if the CI excludes 1 on the claimed side but the ratio is "
-             "outside the band, or if the CI includes 1 (inconclusive); not reproduced if the whole "
-             "CI lies on the other side of 1 (its nearer bound at 1 or past it). With fewer than "
+             "outside the band (right direction, wrong size), or if the CI includes 1 (inconclusive); "
+             "not reproduced if the whole CI lies on the other side of 1 (its nearer bound at 1 or past "
+             "it). With fewer than "
              f"{MIN_BOOTSTRAP_N} rows on a side (too few for the ordering rule's Wilcoxon test to reach "
              "p < 0.05) there is no CI and the claim is inconclusive (differs).",
     "magnitude": f"Order-of-magnitude claims (≈ m orders of magnitude): as ratio claims, with a band of "
                  f"{LOG_HALF_BAND:g} orders either side on a log scale, [10^(m−{LOG_HALF_BAND:g}), "
                  f"10^(m+{LOG_HALF_BAND:g})] (for 2 orders: {10 ** 1.5:.1f}× to {10 ** 2.5:.0f}×).",
     "share": "Share claims (most people): reproduced if the share is above 1/2 and a one-sided "
-             "binomial test against 1/2 gives p < 0.05; differs if it is above 1/2 with p ≥ 0.05; "
-             "not reproduced if it is at most 1/2.",
+             "binomial test against 1/2 gives p < 0.05; differs if it is above 1/2 with p ≥ 0.05 "
+             "(inconclusive); not reproduced if it is at most 1/2.",
     "threshold": "Threshold claims (≈ 0 by n episodes): reproduced if the mean is at most the "
                  "threshold in every expertise group; differs if the mean over all groups is but "
                  "some group's is not; not reproduced otherwise.",
     "correlation": "Correlation claims (ρ of a given sign): reproduced if Pearson's ρ has the claimed "
-                   "sign with p < 0.05; differs if the sign is right but p ≥ 0.05; not reproduced if "
-                   "the sign is wrong.",
+                   "sign with p < 0.05; differs if the sign is right but p ≥ 0.05 (inconclusive); not "
+                   "reproduced if the sign is wrong.",
 }
 
 
@@ -96,6 +102,15 @@ class ClaimResult:
 
     def record(self) -> dict:
         return asdict(self)
+
+
+#: How the why of a "differs" begins where the rows cannot tell (not significant, a CI that includes 1,
+#: too few rows), so that the claims table tells it from "right direction, wrong size".
+INCONCLUSIVE = "inconclusive: "
+
+
+def _inconclusive(why: str, inconclusive: bool) -> str:
+    return INCONCLUSIVE + why if inconclusive else why
 
 
 def _ordering_verdict(sign_right: bool, p: float) -> str:
@@ -129,6 +144,7 @@ def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *,
     why = (f"mean {quantity} is {fmt(a.mean())} for {a_name} and {fmt(b.mean())} for {b_name} over {n} "
            f"paired {who}: {a_name} is {actual} {b_name}, {'as' if sign_right else 'not as'} claimed; "
            f"{test}.")
+    why = _inconclusive(why, verdict == DIFFERS)
     return ClaimResult(id, section, claim, paper, ours_text + f" (n = {n}, p = {fmt_p(p)})", verdict, why,
                        "ordering", n, mean_d)
 
@@ -203,14 +219,19 @@ def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantit
         else f"{fmt(target)}×"
     kind = (f"paired bootstrap over {n} {who}" if paired
             else f"bootstrap over {len(num)} and {len(den)} {who}, each side on its own")
+    ci_side = _ci_side(ci, target)
     side = {"claimed": "the CI excludes 1 on the claimed side",
             "other": f"the CI lies {'at or below' if target > 1 else 'at or above'} 1, against the claim",
-            "includes": "the CI includes 1: inconclusive",
-            "undefined": (f"no CI from fewer than {MIN_BOOTSTRAP_N} rows: inconclusive" if few
-                          else "the CI is undefined: inconclusive")}[_ci_side(ci, target)]
+            "includes": "the CI includes 1",
+            "undefined": (f"no CI from fewer than {MIN_BOOTSTRAP_N} rows" if few
+                          else "the CI is undefined")}[ci_side]
+    unsure = bool(np.isfinite(ratio)) and ci_side in ("includes", "undefined")
+    if unsure and verdict != DIFFERS:
+        side += ": inconclusive"  # a number beside the judged ones, or withheld: said at the end
     why = (f"mean {quantity} is {fmt(mn)} for {num_name} and {fmt(md)} for {den_name}: ratio "
            f"{fmt(ratio)}, 95% CI {ci_text} ({kind}); {where} the band [{fmt(lo)}, {fmt(hi)}] around "
            f"{around}; {side}.")
+    why = _inconclusive(why, unsure and verdict == DIFFERS)
     if withheld:
         why += f" Not judged: {withheld}"
     return ClaimResult(id, section, claim, paper, ours, verdict, why, rule, n, ratio, ci[0], ci[1])
@@ -232,6 +253,7 @@ def share_claim(id, section, claim, paper, hits, what, *, detail: str = "") -> C
         verdict = REPRODUCED if p < ALPHA else DIFFERS
     why = (f"{k} of {n} {what}, {share:.0%}{detail}; "
            f"{'above' if share > 0.5 else 'not above'} one half, binomial p = {fmt_p(p)}.")
+    why = _inconclusive(why, verdict == DIFFERS)
     return ClaimResult(id, section, claim, paper, f"{share:.0%} ({k}/{n})", verdict, why, "share", n, share)
 
 
@@ -269,6 +291,7 @@ def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claime
     verdict = _ordering_verdict(sign_right, cell.p)
     why = (f"ρ of {factor} and {metric} is {format_rho(cell.rho, 1.0)} over {cell.n} rows "
            f"({'the claimed' if sign_right else 'not the claimed'} sign), p = {fmt_p(cell.p)}.")
+    why = _inconclusive(why, verdict == DIFFERS)
     return ClaimResult(id, section, claim, paper, f"ρ = {cell.text} (n = {cell.n})", verdict, why,
                        "correlation", cell.n, cell.rho)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...hypotheses import GROUP_BOUNDARIES
+from ...hypotheses import EXPERTISE_GROUPS, GROUP_BOUNDARIES
 from . import claims as C
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
@@ -22,6 +22,18 @@ V2 = {"theta_k_truth_similarity": "Similarity between θ*_out and Θ_k",
 #: VI-E: the mean regret that counts as "near 0", and the episode counts of the two VI-E claims.
 REGRET_NEAR_ZERO = 0.05
 GROUP_AT, REGRET_AT = 5, 10
+
+
+def _spread_text() -> str:
+    spans = [f"{max(b) - min(b):g} for {g} ({', '.join(f'{x:g}' for x in b)})"
+             for g, b in EXPERTISE_GROUPS.items()]
+    return ("The largest distance between two β values of the same group is " + ", ".join(spans[:-1])
+            + f" and {spans[-1]}: a |β* − β̂| above it means β̂ left β*'s group (it lies outside the range "
+            "of that group's β values).")
+
+
+#: Fig. 2's reading of its y axes: how far apart the β values of one expertise group lie.
+GROUP_SPREAD_TEXT = _spread_text()
 
 
 def _groups(frame) -> list[str]:
@@ -59,8 +71,7 @@ def fig2(inset_n, n: int) -> Figure:
                   f"In-set rows (truth = in_set) at episodes = {n}, conditions `full` and `fixed_theta`, all "
                   "environments, runs and k combined; one violin per expertise group of β* and condition "
                   "(density, quartiles as a black bar, median as a white dot). Panels have their own "
-                  "y scale: |β* − β̂| is bounded by 0.08 (high), 0.5 (medium) and 5 (low) only within a "
-                  "group.", fig)
+                  f"y scale. {GROUP_SPREAD_TEXT}", fig)
 
 
 def fig3(low, n_low: int) -> Figure:
@@ -220,6 +231,7 @@ def build(sweep) -> Report:
         "`expertise_irl.hypotheses.expertise_group`). The claim's why also gives the other reading, "
         "the share of people whose posterior puts more than half its mass on β*'s group "
         "(`p_group_true` > 0.5), not judged.")
+    report.people = _people(rows)
     report.claims = claims(rows, n)
     report.figures = [fig2(inset_n, n)]
     if len(low):
@@ -267,10 +279,10 @@ def capped_effect(inset_n, last) -> str:
     if ratios:
         full = inset_n.loc[inset_n["condition"] == "full", "policy_regret"].mean()
         pooled = inset_n.loc[inset_n["condition"] == "fixed_beta", "policy_regret"].mean() / full
-        parts = ", ".join(f"{g} {fmt(r)}× ({shares.get(g, np.nan):.0%} of their episodes capped)"
+        parts = ", ".join(f"{g} {fmt(r)}× ({shares.get(g, np.nan):.0%} of episodes capped)"
                           for g, r in ratios.items())
-        text += (f"Per expertise group of the in-set people the Fixed β / Full regret ratio of claim VI-C "
-                 f"is {parts}. ")
+        text += (f"Claim VI-C's Fixed β / Full regret ratio per expertise group of the in-set people: "
+                 f"{parts}. ")
         least = min(ratios, key=lambda g: shares.get(g, 1.0))
         if len(ratios) > 1 and ratios[least] > pooled:
             text += ("For a person with a large β the soft values are dominated by the entropy term (the "

@@ -249,6 +249,7 @@ def build(sweep) -> Report:
     rows = with_truth(sweep.rows)
     at = at_max(rows)
     report = Report("fullset", "Report: `fullset` (beyond the paper: the full paper-sim set)")
+    report.people = len(rows.drop_duplicates(PERSON))
     tops = source_episodes(rows)
     full = rows.loc[rows["set"] == "full", "n_hypotheses"]
     n_full = int(full.max()) if len(full) else 0
@@ -303,8 +304,8 @@ def source_caps(config) -> dict[str, int]:
 
 
 def capped_effect(at, last) -> str:
-    """Per population (source and truth) and expertise group: the β distance under Ψ_k and the full
-    set, beside that group's capped share."""
+    """Per population (source and truth): the mean β distance of each expertise group under Ψ_k and
+    under the full set, one sentence each (the capped shares are in the sentences before)."""
     from .capped import population
     from .stats import GROUPS
 
@@ -318,11 +319,11 @@ def capped_effect(at, last) -> str:
             if len(sub) and g in shares:
                 k = sub.loc[sub["set"] == "theta_k", "expertise_distance"].mean()
                 f = sub.loc[sub["set"] == "full", "expertise_distance"].mean()
-                parts.append(f"{g} {fmt(k)} → {fmt(f)} ({shares[g]:.0%} capped)")
+                parts.append(f"{g} {fmt(k)} → {fmt(f)}")
         if parts:
-            pops.append(f"{population({'source': source, 'truth': truth})}: " + ", ".join(parts))
+            pops.append(f"For {population({'source': source, 'truth': truth})}: " + ", ".join(parts) + ".")
     if not pops:
         return ""
-    return ("Mean |β* − β̂| per expertise group, own Ψ_k → full set (share of episodes capped): "
-            + "; ".join(pops) + ". The full set adds θ directions, not β values (B is the same six values "
-            "in both), so what it can change in β̂ comes through θ̂ alone.")
+    return ("Mean |β* − β̂| per expertise group, own Ψ_k → full set. " + " ".join(pops) + " The full set "
+            "adds θ directions, not β values (B is the same six values in both), so what it can change in "
+            "β̂ comes through θ̂ alone.")

@@ -44,9 +44,11 @@ def header(sweep) -> str:
         ("config", f"`{cfg}`" + (f" (SHA-256 {chash}…)" if chash else "")),
         ("rows", f"{len(sweep.rows):,}"),
         ("tasks", f"{sweep.done} done / {sweep.total} total, {sweep.failed} failed"),
-        ("task wall time", f"{sweep.task_time_s:.1f} s (sum of `wall_time_s` over {len(sweep.timings)} "
-                           "finished tasks)"),
+        ("task wall time", f"{duration(sweep.task_time_s)}: the sum of the wall times of the "
+                           f"{len(sweep.timings)} finished tasks (`wall_time_s` in `timings/`); tasks on "
+                           "parallel workers overlap, so this is not the sweep's elapsed time"),
         ("runs", runs_text(sweep)),
+        ("elapsed time", elapsed_text(sweep)),
         ("versions", vtext or "not recorded"),
         ("machine", mtext or "not recorded"),
         ("sweep created", m.get("created", "?")),
@@ -56,12 +58,45 @@ def header(sweep) -> str:
     return "\n".join(lines)
 
 
+def duration(seconds: float) -> str:
+    """``"177.8 s"``, with minutes or hours beside it from two minutes on: ``"5400.0 s (1.5 h)"``."""
+    text = f"{seconds:.1f} s"
+    if seconds >= 3600:
+        return f"{text} ({seconds / 3600:.1f} h)"
+    return f"{text} ({seconds / 60:.1f} min)" if seconds >= 120 else text
+
+
+def elapsed_text(sweep) -> str:
+    """The elapsed time of the recorded invocations of ``experiment run`` (``wall_time_s`` of each
+    ``runs/*.json``), summed; says how many records lack it."""
+    if not sweep.runs:
+        return "not recorded (no `runs/*.json`)"
+    times, n = sweep.run_times_s, len(sweep.runs)
+    if not times:
+        return "not recorded (no `wall_time_s` in `runs/*.json`)"
+    k = len(times)
+    who = (f"the {k} invocation{'s' if k != 1 else ''} of `experiment run`" if k == n
+           else f"the {k} of {n} invocations of `experiment run` that record it ({n - k} without "
+                "`wall_time_s`)")
+    return f"{duration(sum(times))}: the sum of the elapsed times of {who} (`wall_time_s` in `runs/*.json`)"
+
+
 def runs_text(sweep) -> str:
     """The recorded invocations of ``experiment run`` (``runs/*.json``): engine and workers of each."""
     if not sweep.runs:
         return "not recorded (no `runs/*.json`)"
     n = len(sweep.runs)
     return f"{n} recorded in `runs/`: " + workers_text(sweep.runs)
+
+
+def smoke_warning(report: Report, sweep, *, markdown: bool = False) -> str | None:
+    """At scale ``smoke``: the line that says its verdicts mean nothing (None at other scales)."""
+    if sweep.manifest.get("scale") != "smoke":
+        return None
+    n = f" (n = {report.people})" if report.people is not None else ""
+    scale = "`smoke`" if markdown else "smoke"
+    return (f"Scale {scale} is a test of the machinery: its verdicts rest on a handful of people{n} "
+            "and mean nothing.")
 
 
 def unfinished_warning(sweep) -> str | None:
@@ -78,6 +113,9 @@ def _table_block(t: Table) -> str:
 
 def render(report: Report, sweep) -> str:
     out = [f"# {report.title}\n"]
+    smoke = smoke_warning(report, sweep, markdown=True)
+    if smoke:
+        out.append(f"**{smoke}**\n")
     warn = unfinished_warning(sweep)
     if warn:
         out.append(f"> **Warning: unfinished sweep.** {warn}.\n")

@@ -269,6 +269,7 @@ def build(sweep) -> Report:
     e = int(rows["episodes"].max())
     at_e = rows[rows["episodes"] == e]
     report = Report("optimisation", "Report: `optimisation` (paper Sec. VII)")
+    report.people = len(rows.drop_duplicates(PERSON))
     report.notes.append(prior_note(rows, methods))
     report.notes.append(
         f"Methods: {', '.join(f'`{m}`' for m in methods)}. The Sec. VII claims are judged on `{JUDGED}` "

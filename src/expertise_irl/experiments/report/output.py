@@ -1,14 +1,14 @@
 """Writing a report into its folder, never over a user's files.
 
-A report folder holds :data:`MARKER`, listing the files the report wrote. A folder that exists,
-is not empty and has no marker is refused; a previous report is replaced (its listed files are
-removed first; anything else in the folder is left alone).
+A report folder holds :data:`MARKER`, listing the files the report wrote (its content depends on the
+report alone, never on when it was written). A folder that exists, is not empty and has no marker
+is refused; a previous report is replaced (its listed files are removed first; anything else in the
+folder is left alone).
 """
 
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 from ...errors import InputError
@@ -47,8 +47,9 @@ def prepare(out: Path) -> None:
 
 
 def _marker(out: Path, study: str, files: list[str]) -> None:
-    record = {"written_by": "expertise-irl experiment report", "study": study,
-              "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "files": sorted(files)}
+    """The marker: what wrote the folder, the study and the files; no time, so that rebuilding a
+    report from the same rows leaves the folder byte for byte as it was."""
+    record = {"written_by": "expertise-irl experiment report", "study": study, "files": sorted(files)}
     (out / MARKER).write_text(json.dumps(record, indent=2) + "\n")
 
 

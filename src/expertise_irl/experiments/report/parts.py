@@ -48,3 +48,4 @@ class Report:
     figures: list[Figure] = field(default_factory=list)
     tables: list[Table] = field(default_factory=list)
     sections: list[Section] = field(default_factory=list)
+    people: int | None = None  # the simulated people (or instances) the rows are about

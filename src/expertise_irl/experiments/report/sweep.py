@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -65,9 +66,21 @@ class Sweep:
 
     @property
     def task_time_s(self) -> float:
+        """The sum of the finished tasks' wall times (overlapping where tasks ran side by side)."""
         if "wall_time_s" not in getattr(self.timings, "columns", ()):
             return 0.0
         return float(self.timings["wall_time_s"].sum())
+
+    @property
+    def run_times_s(self) -> list[float]:
+        """The elapsed times of the invocations of ``experiment run`` that record one (``wall_time_s``
+        in ``runs/*.json``); records without it, or with no finite non-negative number, are left out."""
+        out = []
+        for r in self.runs:
+            v = r.get("wall_time_s")
+            if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0:
+                out.append(float(v))
+        return out
 
 
 def workers_text(runs) -> str:
