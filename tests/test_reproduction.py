@@ -11,7 +11,8 @@ import pytest
 from expertise_irl.experiments.report import build_report
 
 ROOT = Path(__file__).resolve().parents[1] / "docs" / "reproduction"
-RUNS = ["conditions-paper", "cardinality-paper", "optimisation-small", "fullset-paper"]
+RUNS = ["conditions-paper", "cardinality-paper", "optimisation-small", "optimisation-small-relative",
+        "fullset-paper"]
 
 
 @pytest.mark.parametrize("run", RUNS)
