@@ -457,3 +457,50 @@ S....xx....
 .#...ss...G
 .....ss..tt
 """
+
+
+def _large_set(rng, mdp, n):
+    theta = np.stack([random_theta(rng, mdp.n_features) for _ in range(n)])
+    beta = rng.choice(BETAS, size=n)
+    return theta, beta
+
+
+def test_float32_start_meets_the_same_guarantee():
+    """A set large enough for the float32 first phase: every hypothesis is within the
+    tolerance of the extended-precision reference, as a cold float64 solve is (the float64
+    phase stops on the same contraction bound from any start)."""
+    from expertise_irl.planning import FLOAT32_START_MIN
+
+    rng = np.random.default_rng(5)
+    mdp = random_mdp(rng, 12, 4, 3, 0.95)
+    theta, beta = _large_set(rng, mdp, FLOAT32_START_MIN)
+    mixed = solve(mdp, theta, beta)
+    cold = solve(mdp, theta, beta, float32_start=False)
+    g = mdp.gamma
+    for h in rng.choice(len(beta), size=12, replace=False):
+        ref = soft_value_iteration(mdp, theta[h], beta[h], extended=True)
+        floor = 8 * EPS * np.abs(ref.value).max() / beta[h] * g / (1 - g)
+        assert np.abs(mixed.value[h] - ref.value).max() / beta[h] <= 1e-8 + floor
+        assert lp_error(mixed.log_policy[h], ref.log_policy) <= 2e-8 + 2 * floor
+    # Both phases' sweeps are counted, and the float32 phase did run: the counts differ.
+    assert not np.array_equal(mixed.iterations, cold.iterations)
+    np.testing.assert_array_equal(np.isfinite(mixed.log_policy), np.isfinite(cold.log_policy))
+
+
+def test_float32_start_falls_back_where_float32_overflows():
+    """Weights θ/β beyond float32's range (β = 1e-39): the float32 phase cannot converge, so a
+    cold float64 solve decides, and the result is a cold float64 solve's."""
+    from expertise_irl.errors import ConvergenceError
+    from expertise_irl.planning import FLOAT32_START_MIN
+
+    rng = np.random.default_rng(6)
+    mdp = random_mdp(rng, 10, 3, 2, 0.9)
+    theta, beta = _large_set(rng, mdp, FLOAT32_START_MIN)
+    beta[:4] = 1e-39
+    with pytest.raises(ConvergenceError):  # the case is real: float32 overflows there
+        solve(mdp, theta, beta, dtype="float32")
+    mixed = solve(mdp, theta, beta)
+    cold = solve(mdp, theta, beta, float32_start=False)
+    assert np.all(np.isfinite(mixed.value))
+    np.testing.assert_array_equal(mixed.value, cold.value)
+    np.testing.assert_array_equal(mixed.iterations, cold.iterations)

@@ -33,6 +33,11 @@ from .solver import LANES
 jax.config.update("jax_enable_x64", True)
 
 DEFAULT_TOL = 1e-8
+#: Sets at least this large are solved in float32 first, then finished in float64 from there
+#: (smaller ones would pay the float32 kernels' compilation for little gain).
+FLOAT32_START_MIN = 512
+#: Share of a two-phase solve's time spent in the float32 phase (for progress reports).
+_FLOAT32_SHARE = 0.4
 #: Memory budget for one chunk of hypotheses (bytes of [H, S, A] work arrays).
 DEFAULT_CHUNK_BYTES = 1 * 2**20
 
@@ -159,6 +164,7 @@ def solve(
     v_init: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
     model: str = DEFAULT_MODEL,
+    float32_start: bool = True,
 ) -> SoftSolution:
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
@@ -184,6 +190,13 @@ def solve(
             ``"maxent-relative"`` or ``"boltzmann"``. For ``boltzmann`` the hard values are
             solved once per distinct θ (at its smallest β, so every β meets ``tol``) and
             rescaled for the others; ``v_init`` is then ignored.
+        float32_start: for a float64 solve of at least :data:`FLOAT32_START_MIN` hypotheses
+            without ``v_init``, first sweep in float32 down to float32 resolution (a float32
+            sweep costs about half a float64 one), then finish in float64 from those values.
+            The float64 phase stops on the same contraction bound as a cold start, so the
+            guarantee on V/β is unchanged. If the float32 phase does not converge (weights beyond
+            float32's range, say), a cold float64 solve decides. ``iterations`` then counts the
+            sweeps of both phases.
 
     Raises:
         InputError: bad shapes, non-finite θ, or β <= 0.
@@ -203,8 +216,20 @@ def solve(
         hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, model=model, **opts)
         sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, model=model, **opts)
         return sol._replace(iterations=sol.iterations + hard.iterations[inv])
-    return _solve(mdp, theta, beta, tol=tol, max_iter=max_iter, chunk_size=chunk_size, dtype=dtype,
-                  v_init=v_init, progress=progress, model=model)
+    opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model}
+    if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
+        return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
+    H = len(theta)
+    try:
+        rough = _solve(mdp, theta, beta, dtype="float32", v_init=None, **{**opts, "chunk_size": None},
+                       progress=None if progress is None else
+                       (lambda done, _: progress(int(_FLOAT32_SHARE * done), H)))
+    except ConvergenceError:  # float32 could not settle: a cold float64 solve decides
+        return _solve(mdp, theta, beta, dtype="float64", v_init=None, progress=progress, **opts)
+    sol = _solve(mdp, theta, beta, dtype="float64", v_init=rough.value, **opts,
+                 progress=None if progress is None else
+                 (lambda done, _: progress(int(_FLOAT32_SHARE * H + (1 - _FLOAT32_SHARE) * done), H)))
+    return sol._replace(iterations=sol.iterations + rough.iterations)
 
 
 def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model) -> SoftSolution:

@@ -32,7 +32,7 @@ SCALES = {
 STUDY = dataclasses.replace(
     CONDITIONS_STUDY,
     name="cardinality",
-    version=1,
+    version=2,  # 2: sets of 512+ hypotheses (k >= 86) are solved float32 first
     description="Sec. VI-E: the discrete set with k = 20..100 preference vectors, in- and out-of-set truths",
     scales=SCALES,
 )
