@@ -233,13 +233,19 @@ def simulate(
     return Trajectories(ep[order], step[order], state[order], action[order])
 
 
-def capped_episodes(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> int:
-    """Episodes that ran to ``max_steps`` actions without entering a terminal state."""
+def capped_flags(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> np.ndarray:
+    """``[n_episodes]`` whether each episode ran to ``max_steps`` actions without entering a
+    terminal state (in episode order)."""
     if len(trajs) == 0:
-        return 0
+        return np.zeros(0, dtype=bool)
     last = np.flatnonzero(np.append(trajs.episode[1:] != trajs.episode[:-1], True))
     ended = mdp.terminal[mdp.next_state[trajs.state[last], trajs.action[last]]]
-    return int(np.sum(~ended & (trajs.step[last] + 1 >= max_steps)))
+    return ~ended & (trajs.step[last] + 1 >= max_steps)
+
+
+def capped_episodes(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> int:
+    """Episodes that ran to ``max_steps`` actions without entering a terminal state."""
+    return int(np.sum(capped_flags(trajs, mdp, max_steps)))
 
 
 # ---------------------------------------------------------------------------- validation

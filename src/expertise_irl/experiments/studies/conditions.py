@@ -302,17 +302,16 @@ def run_task(cfg: ConditionsConfig, seed: int, params: dict) -> tuple[dict[str, 
 
 def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.ndarray]:
     """The rows of one person: every condition × episode count 1..N."""
+    from ...demos import capped_flags
     from ...hypotheses import HypothesisSet, expertise_group
     from ...inference.belief import DiscreteBelief
     from ...inference.conditions import set_composition
-    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
 
     trajs = p.trajectories
     eps = trajs.episodes()
     N = len(eps)
     lengths = np.array([len(s) for s, _ in eps])
-    ends = np.array([mdp.next_state[s[-1], a[-1]] for s, a in eps])
-    capped = (lengths >= cfg.max_steps) & ~mdp.terminal[ends]
+    capped = capped_flags(trajs, mdp, cfg.max_steps)
     conds = cfg.person_conditions(p.truth)
     g_true = expertise_group(p.beta)
     est: dict[str, list] = {n: [] for n in ("beta_hat", "theta_hat", "p_group_true", "truth_probability",
@@ -335,9 +334,6 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
             est["entropy"].append(b.entropy)
             est["n_hypotheses"].append(len(sub))
     theta_hat = np.array(est["theta_hat"])
-    uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
-    v_hat, _ = solve_padded(mdp, uniq, np.full(len(uniq), p.beta), cfg.model)
-    regret = [regret_from_values(p.value, v_hat[i], mdp.terminal) for i in inv.ravel()]
     m = len(conds) * N
     e, r, k, _, _ = p.identity
     zm, _ = environment(cfg, seed, e)
@@ -369,13 +365,32 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
     col["p_group_true"] = np.array(est["p_group_true"])
     col["truth_probability"] = np.array(est["truth_probability"])
     col["entropy"] = np.array(est["entropy"])
-    col["expertise_distance"] = np.array([expertise_distance(p.beta, x) for x in est["beta_hat"]])
-    col["cosine_similarity"] = np.array([cosine_similarity(p.theta, t) for t in theta_hat])
-    col["policy_regret"] = np.array(regret)
+    col.update(estimate_metrics(mdp, cfg.model, p.theta, p.beta, p.value, theta_hat, col["beta_hat"]))
     return col
 
 
+def estimate_metrics(mdp, model: str, theta, beta: float, value, theta_hat,
+                     beta_hat) -> dict[str, np.ndarray]:
+    """Sec. V-E's metrics of one person's estimates ``theta_hat [N, K]``, ``beta_hat [N]``
+    against their truth (θ*, β*, soft values ``value [S]``). The regret solves each distinct
+    θ̂ once, at β* (Sec. VI-C), in one padded batch."""
+    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
+
+    uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
+    v_hat, _ = solve_padded(mdp, uniq, np.full(len(uniq), beta), model)
+    return {"expertise_distance": np.array([expertise_distance(beta, x) for x in beta_hat]),
+            "cosine_similarity": np.array([cosine_similarity(theta, t) for t in theta_hat]),
+            "policy_regret": np.array([regret_from_values(value, v_hat[j], mdp.terminal)
+                                       for j in inv.ravel()])}
+
+
 # ----------------------------------------------------------------------------- schema
+#: The metrics of Sec. V-E, as :func:`estimate_metrics` computes them (every study's rows).
+METRIC_COLUMNS = (
+    Column("expertise_distance", "float64", "|β* − β̂|"),
+    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
+    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
+)
 _ID = [
     Column("seed", "int64", "the sweep's seed (`--seed`)"),
     Column("environment", "int32", "environment index e (its map is seeded by `(e,)`)"),
@@ -417,9 +432,7 @@ _ESTIMATES = [
     Column("p_group_true", "float64", "posterior mass on β*'s expertise group"),
     Column("truth_probability", "float64", "posterior probability of (θ*, β*) (NaN if not in the set)"),
     Column("entropy", "float64", "posterior entropy (nats)"),
-    Column("expertise_distance", "float64", "|β* − β̂|"),
-    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
-    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
+    *METRIC_COLUMNS,
 ]
 
 STUDY = Study(

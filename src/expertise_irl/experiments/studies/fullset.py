@@ -34,7 +34,7 @@ from ...errors import InputError
 from ..engine import Column, Study, TaskSpec
 from . import conditions as cond
 from . import optimisation as opt
-from .conditions import FEATURES
+from .conditions import FEATURES, METRIC_COLUMNS
 
 SOURCES = ("conditions", "optimisation")
 SETS = ("theta_k", "full")
@@ -201,13 +201,12 @@ def _episode_log_likelihoods(by_pair: np.ndarray, n_actions: int, trajs) -> np.n
 def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str, np.ndarray]:
     """Rows for every episode count 1..N of one person under one set (one pass), from each
     episode's log-likelihood under every hypothesis of the set (``episode_ll [N, H]``)."""
+    from ...demos import capped_flags
     from ...hypotheses import expertise_group
-    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
 
     eps = trajs.episodes()
     lengths = np.array([len(s) for s, _ in eps])
-    ends = np.array([mdp.next_state[s[-1], a[-1]] for s, a in eps])
-    capped = (lengths >= scfg.max_steps) & ~mdp.terminal[ends]
+    capped = capped_flags(trajs, mdp, scfg.max_steps)
     truth_idx = belief.hypotheses.index(theta, beta)
     beta_hat, theta_hat, p_truth = [], [], []
     total = belief.log_likelihood
@@ -218,8 +217,6 @@ def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str
         theta_hat.append(b.mean_theta)
         p_truth.append(np.nan if truth_idx is None else float(b.probabilities[truth_idx]))
     theta_hat = np.array(theta_hat)
-    uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
-    v_hat, _ = cond.solve_padded(mdp, uniq, np.full(len(uniq), beta), scfg.model)
     N = len(eps)
     col = {
         "episodes": np.arange(1, N + 1), "n_pairs": np.cumsum(lengths), "n_capped": np.cumsum(capped),
@@ -229,9 +226,7 @@ def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str
     for i, f in enumerate(FEATURES):
         col[f"theta_true_{f}"] = np.full(N, theta[i])
         col[f"theta_hat_{f}"] = theta_hat[:, i]
-    col["expertise_distance"] = np.array([expertise_distance(beta, x) for x in beta_hat])
-    col["cosine_similarity"] = np.array([cosine_similarity(theta, t) for t in theta_hat])
-    col["policy_regret"] = np.array([regret_from_values(value, v_hat[j], mdp.terminal) for j in inv.ravel()])
+    col.update(cond.estimate_metrics(mdp, scfg.model, theta, beta, value, theta_hat, beta_hat))
     col["truth_probability"] = np.array(p_truth)
     return col
 
@@ -256,9 +251,7 @@ COLUMNS = (
     *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm)") for f in FEATURES],
     Column("beta_hat", "float64", "β̂ = E[β] after n episodes"),
     *[Column(f"theta_hat_{f}", "float64", f"θ̂ = E[θ] component `{f}`") for f in FEATURES],
-    Column("expertise_distance", "float64", "|β* − β̂|"),
-    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
-    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
+    *METRIC_COLUMNS,
     Column("truth_probability", "float64", "posterior probability of (θ*, β*) (NaN if not in the set)"),
     Column("set_solve_time_s", "float64", "wall time of the full set's solve on this map (one per map)"),
 )

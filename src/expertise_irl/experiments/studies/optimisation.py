@@ -50,10 +50,12 @@ from ...errors import InputError
 from ..engine import Column, Study, TaskSpec
 from .conditions import (
     FEATURES,
+    METRIC_COLUMNS,
     SET_COMPOSITION,
     _grid,
     check_set_sizes,
     environment,
+    estimate_metrics,
     simulate_episodes,
     solve_padded,
 )
@@ -287,12 +289,10 @@ def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndar
     from ...hypotheses import expertise_group
     from ...inference.conditions import set_composition
     from ...inference.priors import get_prior
-    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
 
     keys = [(m, n) for m in results for n in cfg.episode_counts]
     theta_hat = np.array([results[m][n][0] for m, n in keys], dtype=np.float64)
     beta_hat = np.array([results[m][n][1] for m, n in keys], dtype=np.float64)
-    v_hat, _ = solve_padded(mdp, theta_hat, np.full(len(keys), inst.beta), cfg.model)
     L = len(keys)
     e, i = inst.identity
     first = {n: inst.trajectories.first(n) for n in cfg.episode_counts}
@@ -321,9 +321,7 @@ def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndar
     col["beta_hat"] = beta_hat
     for j, f in enumerate(FEATURES):
         col[f"theta_hat_{f}"] = theta_hat[:, j]
-    col["expertise_distance"] = np.array([expertise_distance(inst.beta, b) for b in beta_hat])
-    col["cosine_similarity"] = np.array([cosine_similarity(inst.theta, t) for t in theta_hat])
-    col["policy_regret"] = np.array([regret_from_values(inst.value, v, mdp.terminal) for v in v_hat])
+    col.update(estimate_metrics(mdp, cfg.model, inst.theta, inst.beta, inst.value, theta_hat, beta_hat))
     col["wall_time_s"] = np.array([results[m][n][2] for m, n in keys], dtype=np.float64)
     for name in ("acceptance_rate", "divergences", "max_rhat"):
         col[name] = np.array([results[m][n][3].get(name, np.nan) for m, n in keys], dtype=np.float64)
@@ -355,9 +353,7 @@ COLUMNS = (
     Column("beta_hat", "float64", "β̂ (posterior mean; MAP: the mode)"),
     *[Column(f"theta_hat_{f}", "float64", f"θ̂ component `{f}` (Algorithm 1 box: unnormalised)")
       for f in FEATURES],
-    Column("expertise_distance", "float64", "|β* − β̂|"),
-    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
-    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
+    *METRIC_COLUMNS,
     Column("wall_time_s", "float64", "the method's wall time at this episode count, after a warm-up "
            "(discrete: the set's solve plus the belief updates)"),
     Column("acceptance_rate", "float64", "Algorithm 1's accepted moves / iterations (NaN otherwise)"),
