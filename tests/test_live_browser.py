@@ -95,54 +95,63 @@ def raw_get(url: str, path: str) -> tuple[int, bytes]:
     return r.status, r.read()
 
 
+@contextmanager
+def live_page(sync_api, url: str):
+    """The live page in headless Chromium, loaded and waiting: ``(page, errors)``, where
+    ``errors`` collects the page's uncaught JavaScript errors."""
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--headless", "--no-sandbox"])
+        try:
+            page = browser.new_page(viewport={"width": 1180, "height": 880})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url)
+            # expect() waits without evaluating strings (the page's CSP forbids eval)
+            sync_api.expect(page.locator("#actions")).to_have_attribute("data-value", "0", timeout=30_000)
+            yield page, errors
+        finally:
+            browser.close()
+
+
 def test_drive_an_episode_in_chromium(server, tmp_path):
     sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
     url, map_path, out = server
     mdp = parse_map(MAP, name=str(map_path)).to_mdp()
     index = parse_map(MAP).state_index()
     shot = tmp_path / "live.png"
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--headless", "--no-sandbox"])
-        try:
-            page = browser.new_page(viewport={"width": 1180, "height": 880})
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(url)
-            expect = sync_api.expect  # waits without evaluating strings (the page's CSP forbids eval)
-            expect(page.locator("#actions")).to_have_attribute("data-value", "0", timeout=30_000)
-            assert page.locator("#beta-bars .track").count() == 6  # one bar per β of paper-sim
-            assert page.locator("#theta-bars .track").count() == 5
-            assert page.locator("#group-bars .track").count() == 3
-            assert "The robot chose" in page.locator("#start").inner_text()
-            x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
-            start = int(index[y, x])
-            actions = path_to_goal(mdp, start)
-            assert len(actions) >= 3
+    expect = sync_api.expect
+    with live_page(sync_api, url) as (page, errors):
+        assert page.locator("#beta-bars .track").count() == 6  # one bar per β of paper-sim
+        assert page.locator("#theta-bars .track").count() == 5
+        assert page.locator("#group-bars .track").count() == 3
+        assert "The robot chose" in page.locator("#start").inner_text()
+        x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
+        start = int(index[y, x])
+        actions = path_to_goal(mdp, start)
+        assert len(actions) >= 3
 
-            wall = next(a for a in range(4) if mdp.next_state[start, a] < 0)
-            page.keyboard.press(KEYS[ACTION_NAMES[wall]][0])  # into a wall or off the map
-            expect(page.locator("#message")).to_have_class(re.compile("refused"))
-            assert "not recorded" in page.locator("#message").inner_text()
-            assert page.locator("#actions").get_attribute("data-value") == "0"
+        wall = next(a for a in range(4) if mdp.next_state[start, a] < 0)
+        page.keyboard.press(KEYS[ACTION_NAMES[wall]][0])  # into a wall or off the map
+        expect(page.locator("#message")).to_have_class(re.compile("refused"))
+        assert "not recorded" in page.locator("#message").inner_text()
+        assert page.locator("#actions").get_attribute("data-value") == "0"
 
-            shown = [page.locator("#beta-hat").inner_text()]
-            for i, a in enumerate(actions):
-                key = KEYS[ACTION_NAMES[a]][i % 2]
-                page.keyboard.press(key)
-                done = i + 1 == len(actions)
-                want = "1" if done else "0"
-                expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
-                expect(page.locator("#episodes-done")).to_have_attribute("data-value", want)
-                shown.append(page.locator("#beta-hat").inner_text())
-                assert shown[-1] != shown[-2], f"β̂ did not change after action {i + 1}: {shown}"
-                if i == len(actions) // 2:
-                    page.screenshot(path=str(shot))
-            assert not errors, errors
-            assert "Goal reached" in page.locator("#message").inner_text()
-            assert page.locator("#episode").get_attribute("data-value") == "2"
-            assert not errors, errors
-        finally:
-            browser.close()
+        shown = [page.locator("#beta-hat").inner_text()]
+        for i, a in enumerate(actions):
+            key = KEYS[ACTION_NAMES[a]][i % 2]
+            page.keyboard.press(key)
+            done = i + 1 == len(actions)
+            want = "1" if done else "0"
+            expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+            expect(page.locator("#episodes-done")).to_have_attribute("data-value", want)
+            shown.append(page.locator("#beta-hat").inner_text())
+            assert shown[-1] != shown[-2], f"β̂ did not change after action {i + 1}: {shown}"
+            if i == len(actions) // 2:
+                page.screenshot(path=str(shot))
+        assert not errors, errors
+        assert "Goal reached" in page.locator("#message").inner_text()
+        assert page.locator("#episode").get_attribute("data-value") == "2"
+        assert not errors, errors
     assert shot.stat().st_size > 10_000
     if os.environ.get("EXPERTISE_IRL_SCREENSHOT"):
         shutil.copyfile(shot, os.environ["EXPERTISE_IRL_SCREENSHOT"])
@@ -177,29 +186,20 @@ def test_drive_a_floor_plan_in_chromium(tmp_path):
     map_path.with_suffix(".toml").write_text('world = "warehouse"\ncell_size = 0.5\n')
     out = tmp_path / "rec"
     shot = tmp_path / "live-plan.png"
-    with serving(map_path, out) as url, sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--headless", "--no-sandbox"])
-        try:
-            page = browser.new_page(viewport={"width": 1180, "height": 880})
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(url)
-            expect = sync_api.expect
-            expect(page.locator("#actions")).to_have_attribute("data-value", "0", timeout=30_000)
-            assert page.locator("#theta-bars .track").count() == 3  # length, restricted, road
-            start_heading = page.locator("#heading").get_attribute("data-value")
-            for i, name in enumerate(PLAN_MOVES):
-                page.keyboard.press(KEYS[name][i % 2])
-                expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
-                if i + 1 < len(PLAN_MOVES):
-                    axis = "vertical" if name == "down" else "horizontal"
-                    expect(page.locator("#heading")).to_have_attribute("data-value", axis)
-                if i == 5:
-                    page.screenshot(path=str(shot))
-            expect(page.locator("#episodes-done")).to_have_attribute("data-value", "1")
-            assert not errors, errors
-        finally:
-            browser.close()
+    expect = sync_api.expect
+    with serving(map_path, out) as url, live_page(sync_api, url) as (page, errors):
+        assert page.locator("#theta-bars .track").count() == 3  # length, restricted, road
+        start_heading = page.locator("#heading").get_attribute("data-value")
+        for i, name in enumerate(PLAN_MOVES):
+            page.keyboard.press(KEYS[name][i % 2])
+            expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+            if i + 1 < len(PLAN_MOVES):
+                axis = "vertical" if name == "down" else "horizontal"
+                expect(page.locator("#heading")).to_have_attribute("data-value", axis)
+            if i == 5:
+                page.screenshot(path=str(shot))
+        expect(page.locator("#episodes-done")).to_have_attribute("data-value", "1")
+        assert not errors, errors
     assert shot.stat().st_size > 10_000
     rows = [line.split(",") for line in (out / "demos.csv").read_text().splitlines()]
     assert rows[0] == ["episode", "step", "x", "y", "heading"]
