@@ -80,11 +80,11 @@ def run_cmd(
          f"done or skipped, {summary.failed} failed, {summary.rows} rows written to {out} in "
          f"{_duration(summary.wall_time_s)}")
     if summary.failed or summary.failed_before:
-        what = (f"{summary.failed} task(s) failed" if summary.failed else "") + \
-            (", and " if summary.failed and summary.failed_before else "") + \
-            (f"{summary.failed_before} task(s) that failed before were not retried"
-             if summary.failed_before else "")
-        _say(f"{what}: see `expertise-irl experiment status {out}`; re-run them with --retry-failed")
+        parts = [f"{summary.failed} task(s) failed"] if summary.failed else []
+        if summary.failed_before:
+            parts.append(f"{summary.failed_before} task(s) that failed before were not retried")
+        _say(f"{', and '.join(parts)}: see `expertise-irl experiment status {out}`; "
+             "re-run them with --retry-failed")
         raise typer.Exit(1)
 
 

@@ -106,7 +106,9 @@ def estimate_s(cfg: FullsetConfig, e: int) -> float:
     """Rough seconds of one map's task for one worker of a 2-core laptop: the full set's solve
     (measured: 0.05 s per state for 18,186 hypotheses) plus each person's episodes scored
     under both sets and their regret solves (measured: about 0.4 s for 20 episodes on 287 states)."""
-    n_hyp = 3031 * 6
+    from ...hypotheses import BETA_PRESETS
+
+    n_hyp = len(cond._grid(cfg.thetas, len(FEATURES))) * len(BETA_PRESETS[cfg.betas])
     total, maps = 2.0, set()
     for source, scfg in (("conditions", cfg.conditions()), ("optimisation", cfg.optimisation())):
         if source not in cfg.sources or e >= scfg.environments:
