@@ -48,6 +48,18 @@ class ModelFit:
         return bayes_factor_reading(self.log_bayes_factor)
 
 
+def check_model_list(models: Sequence[str]) -> tuple[str, ...]:
+    """``models`` as a tuple, each a known observation model and none named twice (``--models``)."""
+    models = tuple(models)
+    if not models:
+        raise InputError("--models: name at least one model")
+    for m in models:
+        check_model(m, "--models")
+    if len(set(models)) != len(models):
+        raise InputError(f"--models names a model twice: {','.join(models)}")
+    return models
+
+
 def bayes_factor_reading(log_bayes_factor: float) -> str:
     """Kass & Raftery's reading of a log Bayes factor against the best model (≤ 0)."""
     x = 2 * abs(log_bayes_factor)
@@ -108,12 +120,7 @@ def compare_models(
 
     ``progress(model)`` may return a ``progress(done, total)`` callback for that model's solve.
     """
-    if not models:
-        raise InputError("--models: name at least one model")
-    for m in models:
-        check_model(m, "--models")
-    if len(set(models)) != len(models):
-        raise InputError(f"--models names a model twice: {','.join(models)}")
+    check_model_list(models)
     split = split_episodes(trajs, holdout)
     unavailable = {}
     if split is None:

@@ -30,22 +30,14 @@ import numpy as np
 from scipy.special import logsumexp
 
 from ..errors import InputError
-from ..inference.evidence import bayes_factor_reading
-from ..models import check_model
+from ..inference.evidence import bayes_factor_reading, check_model_list
 
 FIT, HELDOUT = "fit", "heldout"
 
 
 def parse_models(spec: str) -> tuple[str, ...]:
     """``--models M1,M2,...`` as a tuple of known, distinct models."""
-    names = tuple(m.strip() for m in spec.split(",") if m.strip())
-    if not names:
-        raise InputError("--models: name at least one model")
-    for m in names:
-        check_model(m, "--models")
-    if len(set(names)) != len(names):
-        raise InputError(f"--models names a model twice: {','.join(names)}")
-    return names
+    return check_model_list([m.strip() for m in spec.split(",") if m.strip()])
 
 
 def check_models(models: Sequence[str], method: str) -> None:
