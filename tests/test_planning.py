@@ -474,8 +474,8 @@ def test_float32_start_meets_the_same_guarantee():
     rng = np.random.default_rng(5)
     mdp = random_mdp(rng, 12, 4, 3, 0.95)
     theta, beta = _large_set(rng, mdp, FLOAT32_START_MIN)
-    mixed = solve(mdp, theta, beta)
-    cold = solve(mdp, theta, beta, float32_start=False)
+    mixed = solve(mdp, theta, beta, float32_start=True)
+    cold = solve(mdp, theta, beta)
     g = mdp.gamma
     for h in rng.choice(len(beta), size=12, replace=False):
         ref = soft_value_iteration(mdp, theta[h], beta[h], extended=True)
@@ -499,8 +499,32 @@ def test_float32_start_falls_back_where_float32_overflows():
     beta[:4] = 1e-39
     with pytest.raises(ConvergenceError):  # the case is real: float32 overflows there
         solve(mdp, theta, beta, dtype="float32")
-    mixed = solve(mdp, theta, beta)
-    cold = solve(mdp, theta, beta, float32_start=False)
+    mixed = solve(mdp, theta, beta, float32_start=True)
+    cold = solve(mdp, theta, beta)
     assert np.all(np.isfinite(mixed.value))
     np.testing.assert_array_equal(mixed.value, cold.value)
     np.testing.assert_array_equal(mixed.iterations, cold.iterations)
+
+
+def test_over_relaxation_meets_the_guarantee_in_fewer_sweeps():
+    """On a grid (red-black ordering), the wandering hypotheses (large β) switch to SOR and the
+    near-deterministic ones mostly stay plain: every one is within the tolerance of the
+    extended-precision reference, and the set needs far fewer sweeps than plain sweeps do."""
+    rng = np.random.default_rng(11)
+    mdp = parse_map(ZONE_TEXT).to_mdp()
+    theta = np.stack([random_theta(rng, mdp.n_features) for _ in range(24)])
+    beta = np.repeat([0.01, 0.5, 10.0], 8)
+    sor = solve(mdp, theta, beta)
+    plain = solve(mdp, theta, beta, over_relax=False)
+    g = mdp.gamma
+    for h in range(len(beta)):
+        ref = soft_value_iteration(mdp, theta[h], beta[h], extended=True)
+        floor = 8 * EPS * np.abs(ref.value).max() / beta[h] * g / (1 - g)
+        for sol in (sor, plain):
+            assert np.abs(sol.value[h] - ref.value).max() / beta[h] <= 1e-8 + floor
+            assert lp_error(sol.log_policy[h], ref.log_policy) <= 2e-8 + 2 * floor
+    wander = beta >= 0.5
+    # Plain red-black sweeps contract by about γ² each on these; SOR by about ω − 1 ≈ 0.6.
+    assert sor.iterations[wander].sum() < 0.6 * plain.iterations[wander].sum()
+    # A lane that tried SOR and fell back pays at most its trial (two checks) over plain.
+    assert np.all(sor.iterations <= plain.iterations + 2 * CHECK_EVERY)

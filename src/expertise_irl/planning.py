@@ -164,14 +164,16 @@ def solve(
     v_init: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
     model: str = DEFAULT_MODEL,
-    float32_start: bool = True,
+    over_relax: bool = True,
+    float32_start: bool = False,
 ) -> SoftSolution:
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
     A pool of ``chunk_size`` lanes sweeps the states in red-black Gauss–Seidel order
     (:mod:`expertise_irl.solver`); a lane whose hypothesis meets the tolerance hands its
     values back and takes the next hypothesis, so no work is spent on finished ones and
-    memory stays bounded by the pool, whatever the number of hypotheses. Results come back
+    memory stays bounded by the pool, whatever the number of hypotheses. Lanes whose plain
+    sweeps contract slowly switch to over-relaxed sweeps (``over_relax``). Results come back
     in the order the hypotheses were given.
 
     Args:
@@ -190,13 +192,19 @@ def solve(
             ``"maxent-relative"`` or ``"boltzmann"``. For ``boltzmann`` the hard values are
             solved once per distinct θ (at its smallest β, so every β meets ``tol``) and
             rescaled for the others; ``v_init`` is then ignored.
+        over_relax: let a hypothesis whose Gauss–Seidel sweeps contract at about γ² per sweep
+            (a wandering person, large β) switch to successive over-relaxation, and go back to
+            plain sweeps if that does not beat them (:func:`expertise_irl.solver.solve_pool`).
+            Convergence is certified by a plain sweep either way, so the guarantee on V/β is the
+            same; on the paper's sets it halves the sweeps. ``False`` sweeps plainly throughout.
         float32_start: for a float64 solve of at least :data:`FLOAT32_START_MIN` hypotheses
-            without ``v_init``, first sweep in float32 down to float32 resolution (a float32
-            sweep costs about half a float64 one), then finish in float64 from those values.
-            The float64 phase stops on the same contraction bound as a cold start, so the
-            guarantee on V/β is unchanged. If the float32 phase does not converge (weights beyond
-            float32's range, say), a cold float64 solve decides. ``iterations`` then counts the
-            sweeps of both phases.
+            without ``v_init``, first sweep in float32 down to float32 resolution, then finish in
+            float64 from those values. The float64 phase stops on the same contraction bound as
+            a cold start, so the guarantee on V/β is unchanged. If the float32 phase does not
+            converge (weights beyond float32's range, say), a cold float64 solve decides.
+            ``iterations`` then counts the sweeps of both phases. Off by default: with
+            over-relaxation a float32 sweep saves too little on a CPU to pay for the second
+            phase (docs/performance.md); it may pay where float32 is much faster than float64.
 
     Raises:
         InputError: bad shapes, non-finite θ, or β <= 0.
@@ -212,11 +220,13 @@ def solve(
         inv = inv.reshape(-1)
         bmin = np.full(len(uniq), np.inf)
         np.minimum.at(bmin, inv, beta)
-        opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "dtype": dtype}
+        opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "dtype": dtype,
+                "over_relax": over_relax}
         hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, model=model, **opts)
         sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, model=model, **opts)
         return sol._replace(iterations=sol.iterations + hard.iterations[inv])
-    opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model}
+    opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model,
+            "over_relax": over_relax}
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
     H = len(theta)
@@ -232,7 +242,8 @@ def solve(
     return sol._replace(iterations=sol.iterations + rough.iterations)
 
 
-def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model) -> SoftSolution:
+def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
+           over_relax) -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
@@ -272,7 +283,7 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
         n = len(idx)
         padded = np.concatenate([idx, np.repeat(idx[-1:], size - n)])  # one shape for every batch
         v, it, delta = kernel.solve_pool(prep, jnp.asarray(weights[padded]), jnp.asarray(scaled0[padded]),
-                                         *consts, groups=groups, model=model)
+                                         *consts, groups=groups, model=model, relax=over_relax)
         delta = np.asarray(delta)[:n]
         if not np.all(delta == 0):  # also catches NaN
             j = int(np.flatnonzero(~(delta == 0))[0])

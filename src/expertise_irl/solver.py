@@ -12,6 +12,13 @@ model's (:func:`expertise_irl.models.backup`, a static argument of every kernel)
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
 costs the sum of its members' sweeps, not its slowest member's times the batch size.
+
+Over-relaxation. A lane whose Gauss–Seidel sweeps contract at the slowest possible rate
+(about γ² per sweep: a person who wanders, large β) switches to successive over-relaxation,
+which on ``zones30`` needs a quarter of the sweeps; a lane on which it does not beat plain
+sweeps goes back to the values it had and stays plain. Every check's last sweep is plain, and
+only its change certifies the tolerance, so the guarantee is the plain sweeps' whatever
+happened before.
 """
 
 from __future__ import annotations
@@ -32,8 +39,22 @@ jax.config.update("jax_enable_x64", True)
 #: as fast per backup with 8 float64 lanes (one AVX-512 vector) as with 16 or more.
 LANES = 8
 #: Sweeps between convergence checks (a converged lane may do up to CHECK_EVERY - 1 more,
-#: which only tightens it; they are counted in the reported sweeps).
-CHECK_EVERY = 4
+#: which only tightens it; they are counted in the reported sweeps). The last sweep of each
+#: check is a plain Gauss–Seidel sweep, whose change certifies the tolerance.
+CHECK_EVERY = 8
+#: Lane modes of the over-relaxation (see :func:`solve_pool`).
+_MEASURE, _RELAX, _PLAIN = 0, 1, 2
+
+
+def relaxation_factor(gamma):
+    """The over-relaxation factor ω of the pool's SOR sweeps for discount ``gamma``.
+
+    Young's optimum ``2 / (1 + sqrt(1 - ρ²))`` for the largest possible Jacobi spectral radius
+    ρ = γ, plus 0.05: the rate of SOR rises steeply below the optimum and only as ω − 1 above
+    it, and a plain certifying sweep in every :data:`CHECK_EVERY` pulls the optimum up a little.
+    On ``zones30`` (γ = 0.95) the paper's β ≥ 0.5 then converge in 56 sweeps instead of 224.
+    """
+    return jnp.minimum(1.95, 2.0 / (1.0 + jnp.sqrt(1.0 - gamma * gamma)) + 0.05)
 
 
 class Prepared(NamedTuple):
@@ -133,7 +154,21 @@ def sweep(prep: Prepared, w, v, gamma, model: str):
     return v, delta
 
 
+def relaxed_sweep(prep: Prepared, w, v, gamma, model: str, omega):
+    """One red-black SOR sweep: each block moves ``omega [L]`` times its Gauss–Seidel step.
+
+    With ``omega == 1`` a lane's values are exactly those of :func:`sweep`.
+    """
+    nb = prep.features.shape[2]
+    for b in (0, 1):
+        new, _ = block_backup(prep, b, w, v, gamma, model)
+        old = v[b * nb:(b + 1) * nb]
+        v = jax.lax.dynamic_update_slice_in_dim(v, new + (omega - 1.0) * (new - old), b * nb, axis=0)
+    return v
+
+
 _sweep_groups = jax.vmap(sweep, in_axes=(None, 0, 0, None, None))
+_relaxed_groups = jax.vmap(relaxed_sweep, in_axes=(None, 0, 0, None, None, 0))
 
 
 def _to_lanes(x, groups: int):
@@ -148,8 +183,17 @@ def _from_lanes(x):
     return x.reshape(-1, *x.shape[2:])
 
 
-def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str = "maxent"):
+def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str = "maxent",
+               relax: bool = True):
     """Solve every hypothesis with a pool of ``groups × LANES`` lanes that refill as they finish.
+
+    A lane starts with plain Gauss–Seidel sweeps. With ``relax``, one whose change shrank by
+    at least 0.99 γ² per sweep over its second check (the slowest rate plain sweeps show,
+    where a wandering person's walk rarely ends) switches to SOR with
+    :func:`relaxation_factor` from its current values; if a later check shows it contracting
+    slower than γ² per sweep, it stays plain from then on, going back to those values unless
+    its own certified change is smaller by then. Only the plain last sweep of a check can
+    certify convergence.
 
     Args:
         weights: ``[H, K]`` scaled reward weights θ/β.
@@ -159,7 +203,7 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     Returns ``(v [H, rows], sweeps [H], last change [H])``; the last change is 0 for every
     hypothesis that met its tolerance, and positive (or NaN) for one that did not.
     """
-    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups, model=model)
+    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups, model=model, relax=relax)
 
 
 @partial(jax.jit, static_argnames=("model",))
@@ -173,7 +217,7 @@ def _final_backup(prep: Prepared, w, v, gamma, model: str):
     return jax.vmap(one)(w, v)
 
 
-def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str):
+def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str, relax: bool):
     dtype = prep.features.dtype
     eps = jnp.finfo(dtype).eps
     H = weights.shape[0]
@@ -184,6 +228,7 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     # Each sweep is a γ-contraction, so ||v_n+1 - v_n|| <= tol (1-γ)/γ bounds ||v_n+1 - v*|| by
     # tol; the threshold is floored at the floating-point resolution of the values themselves.
     base_thresh = tol * (1.0 - gamma) / gamma
+    omega = relaxation_factor(gamma)
 
     lane_h = jnp.arange(slots)
     active = lane_h < H
@@ -194,24 +239,47 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         lane_h, active, jnp.zeros(slots, jnp.int64),  # lane -> hypothesis, busy, sweeps
         jnp.minimum(slots, H),  # next hypothesis to hand out
         jnp.zeros_like(v0), jnp.zeros(H, jnp.int64), jnp.zeros(H, dtype),  # outputs
+        # over-relaxation per lane: mode, checks in this mode, last change, values and change
+        # where it started
+        (jnp.full(slots, _MEASURE, jnp.int32), jnp.zeros(slots, jnp.int32), jnp.full(slots, jnp.inf, dtype),
+         jnp.zeros((groups, v0.shape[1], LANES), dtype), jnp.zeros(slots, dtype)),
     )
 
     def cond(c):
         return jnp.any(c[3])
 
     def body(c):
-        w, v, lane_h, active, it, next_h, out_v, out_it, out_d = c
-        # Several sweeps between checks: retiring lanes costs about as much as a sweep.
-        v = jax.lax.fori_loop(0, CHECK_EVERY - 1, lambda _, v: _sweep_groups(prep, w, v, gamma, model)[0], v)
+        w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
+        mode, checks, d_prev, v_save, d_save = sor
+        # CHECK_EVERY - 1 sweeps (over-relaxed in lanes that chose it), then a plain one.
+        omega_l = _to_lanes(jnp.where(mode == _RELAX, omega, 1.0).astype(dtype), groups)
+        v = jax.lax.fori_loop(0, CHECK_EVERY - 1,
+                              lambda _, v: _relaxed_groups(prep, w, v, gamma, model, omega_l), v)
         v, d = _sweep_groups(prep, w, v, gamma, model)
         d = _from_lanes(d)
         it = it + CHECK_EVERY * active.astype(it.dtype)
         vmax = _from_lanes(jnp.max(jnp.abs(v), axis=1))
         conv = active & (d <= jnp.maximum(base_thresh, 8.0 * eps * vmax))
         fin = conv | (active & (it >= max_iter))
+        # Over-relaxation: after two plain checks, a lane contracting at about γ² per sweep
+        # starts it from its current values; one that then contracts slower than γ² per sweep
+        # (after a check's grace) stays plain from then on, from the start's values unless its
+        # own certified change is already smaller.
+        checks = checks + 1
+        rate = (d / d_prev) ** (1.0 / CHECK_EVERY)
+        start = relax & (mode == _MEASURE) & (checks >= 2) & (rate >= 0.99 * gamma * gamma) & ~fin
+        back = (mode == _RELAX) & (checks >= 2) & ~(rate <= gamma * gamma) & ~fin
+        undo = back & ~(d < d_save)  # keep SOR's values where they are closer than the start's
+        v = jnp.where(_to_lanes(undo, groups)[:, None, :], v_save, v)
+        d = jnp.where(undo, d_save, d)
+        v_save = jnp.where(_to_lanes(start, groups)[:, None, :], v, v_save)
+        d_save = jnp.where(start, d, d_save)
+        mode = jnp.where(start, _RELAX, jnp.where(back, _PLAIN, mode))
+        checks = jnp.where(start, 0, checks)
+        sor = (mode, checks, d, v_save, d_save)
 
         def retire(c):
-            w, v, lane_h, active, it, next_h, out_v, out_it, out_d = c
+            w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
             where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
             out_v = out_v.at[where].set(_from_lanes(v), mode="drop")
             out_it = out_it.at[where].set(it, mode="drop")
@@ -225,15 +293,18 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
             it = jnp.where(take, 0, it)
             active = jnp.where(fin, take, active)
             next_h = jnp.minimum(next_h + jnp.sum(fin), H)
-            return w, v, lane_h, active, it, next_h, out_v, out_it, out_d
+            mode, checks, d_prev, v_save, d_save = sor
+            sor = (jnp.where(take, _MEASURE, mode), jnp.where(take, 0, checks),
+                   jnp.where(take, jnp.inf, d_prev), v_save, d_save)
+            return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor
 
-        return retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d))
+        return retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor))
 
     out = jax.lax.while_loop(cond, body, init)
     return out[6], out[7], out[8]
 
 
-_solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "model"))
+_solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "model", "relax"))
 
 
 def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):

@@ -32,7 +32,7 @@ SCALES = {
 STUDY = dataclasses.replace(
     CONDITIONS_STUDY,
     name="cardinality",
-    version=2,  # 2: sets of 512+ hypotheses (k >= 86) are solved float32 first
+    version=3,  # 3: over-relaxed solves (values move within the tolerance)
     description="Sec. VI-E: the discrete set with k = 20..100 preference vectors, in- and out-of-set truths",
     scales=SCALES,
 )

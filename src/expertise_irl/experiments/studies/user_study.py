@@ -211,7 +211,7 @@ _PARTICIPANT = Column("participant", "string", "participant ID")
 
 DISCRETE = Study(
     name="user-study-discrete",
-    version=1,
+    version=2,  # 2: over-relaxed solves (values move within the tolerance)
     description="expertise-irl study: one solve per floor plan, log-likelihoods of every manifest row",
     config_type=UserStudyConfig,
     scales={},
@@ -227,7 +227,7 @@ DISCRETE = Study(
 )
 CONTINUOUS = Study(
     name="user-study-continuous",
-    version=1,
+    version=2,  # 2: over-relaxed solves (values move within the tolerance)
     description="expertise-irl study --method map|nuts: one task per participant",
     config_type=UserStudyConfig,
     scales={},
@@ -238,7 +238,7 @@ CONTINUOUS = Study(
 )
 OPTIMAL = Study(
     name="user-study-optimal",
-    version=1,
+    version=2,  # 2: over-relaxed solves (values move within the tolerance)
     description="expertise-irl study: optimal paths (β = 0.001, θ̂) per floor plan",
     config_type=UserStudyConfig,
     scales={},
