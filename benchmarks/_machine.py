@@ -28,6 +28,10 @@ def machine_info() -> dict[str, object]:
     import jax
     import numpy as np
 
+    from expertise_irl.tuning import lane_choice
+
+    lanes = lane_choice("float64")  # measured here at the machine's first use
+
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as fh:
@@ -51,6 +55,9 @@ def machine_info() -> dict[str, object]:
         "numpy": np.__version__,
         "jax": jax.__version__,
         "jax_backend": jax.default_backend(),
+        "solver_lanes": lanes.lanes,
+        "solver_lanes_source": lanes.source + (f" {lanes.measured}" if lanes.measured else ""),
+        "solver_lanes_backups_per_s": {str(k): round(v) for k, v in lanes.backups_per_s.items()},
         "command": " ".join([os.path.basename(sys.executable), *sys.argv]),
     }
 

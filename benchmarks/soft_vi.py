@@ -184,7 +184,7 @@ def measure_ceiling(seconds: float = 1.0) -> dict[str, float]:
 def measure_xla_ceiling(n_states: int, n_actions: int, seconds: float = 1.0, groups: int = 32) -> dict:
     """Backups per second of the backup's arithmetic inside XLA, with no gather, on all cores.
 
-    A jitted loop over arrays of the solver's shapes (``[groups, A, S/2, LANES]`` float64 per
+    A jitted loop over arrays of the solver's shapes (``[groups, A, S/2, lanes]`` float64 per
     half-sweep): q = r + γ v (v broadcast, not gathered), then max, exp, sum and log over
     actions, feeding v back so nothing is hoisted out of the loop. One such program per core
     runs at once (threads), as the solver's lane groups do.
@@ -192,8 +192,9 @@ def measure_xla_ceiling(n_states: int, n_actions: int, seconds: float = 1.0, gro
     import jax
     import jax.numpy as jnp
 
-    from expertise_irl.solver import LANES
+    from expertise_irl.tuning import lane_width
 
+    LANES = lane_width()
     jax.config.update("jax_enable_x64", True)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     nb = max(1, n_states // 2)
@@ -241,10 +242,12 @@ def measure_xla_ceiling(n_states: int, n_actions: int, seconds: float = 1.0, gro
 
 def bandwidth_backups(bandwidth: float, n_states: int, n_actions: int, n_features: int) -> float:
     """Backups per second if one sweep only had to stream its data once from memory: per lane
-    group, the values read and written (S × LANES × 8 B × 2) and the features (S × A × K × 8 B),
-    for S × A × LANES backups. A bound that matters only when they do not fit in cache."""
-    from expertise_irl.solver import LANES
+    group, the values read and written (S × lanes × 8 B × 2) and the features (S × A × K × 8 B),
+    for S × A × lanes backups (lanes: the solver's width on this machine). A bound that matters
+    only when they do not fit in cache."""
+    from expertise_irl.tuning import lane_width
 
+    LANES = lane_width()
     bytes_per_sweep = n_states * LANES * 8 * 2 + n_states * n_actions * n_features * 8
     return bandwidth * n_states * n_actions * LANES / bytes_per_sweep
 

@@ -1,5 +1,11 @@
 """Shared test configuration: a headless matplotlib backend and small fixtures."""
 
+import os
+
 import matplotlib
 
 matplotlib.use("Agg")
+# The solver's lane width is fixed for the suite (results agree within the tolerance whatever the
+# width, but one width keeps them identical from machine to machine); tests/test_tuning.py
+# measures and caches it in a folder of its own.
+os.environ.setdefault("EXPERTISE_IRL_LANES", "8")

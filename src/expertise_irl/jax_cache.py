@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import os
 
+from .cache import user_cache_dir
+
 JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
 
 _READY = False
@@ -27,8 +29,7 @@ def enable_jax_cache() -> None:
     if where.lower() == "off":
         return
     if not where:
-        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        where = os.path.join(base, "expertise-irl", "jax")
+        where = str(user_cache_dir() / "jax")
     try:
         os.makedirs(where, exist_ok=True)
     except OSError:

@@ -28,7 +28,7 @@ from . import solver as kernel
 from .errors import ConvergenceError, InputError
 from .mdp import TabularMDP
 from .models import DEFAULT_MODEL, check_model
-from .solver import LANES
+from .tuning import lane_width
 
 jax.config.update("jax_enable_x64", True)
 
@@ -36,6 +36,9 @@ DEFAULT_TOL = 1e-8
 #: Sets at least this large are solved in float32 first, then finished in float64 from there
 #: (smaller ones would pay the float32 kernels' compilation for little gain).
 FLOAT32_START_MIN = 512
+#: Sets at least this large measure the machine's lane width if none is known yet
+#: (:mod:`expertise_irl.tuning`); smaller ones use the default width.
+TUNE_MIN = 64
 #: Share of a two-phase solve's time spent in the float32 phase (for progress reports).
 _FLOAT32_SHARE = 0.4
 #: Memory budget for one chunk of hypotheses (bytes of [H, S, A] work arrays).
@@ -141,15 +144,18 @@ def _prepared(mdp: TabularMDP, dtype: str) -> kernel.Prepared:
     return per_mdp[dtype]
 
 
-def default_chunk_size(mdp: TabularMDP, dtype=np.float64, budget_bytes: int = DEFAULT_CHUNK_BYTES) -> int:
-    """Hypotheses in flight at once (a multiple of :data:`~expertise_irl.solver.LANES`).
+def default_chunk_size(mdp: TabularMDP, dtype=np.float64, budget_bytes: int = DEFAULT_CHUNK_BYTES,
+                       lanes: int = kernel.LANES) -> int:
+    """Hypotheses in flight at once (a multiple of the lane width ``lanes``).
 
     Sized so the lanes' values (``[S, chunk]``) stay near ``budget_bytes``: 144 on a 30×30
-    map, fewer on large maps, never fewer than 4 lane groups (32 hypotheses) or more than 256.
-    Measured on 2 cores: 128-144 lanes are fastest on 883 states, 32 on 4,546 states.
+    map, fewer on large maps, never fewer than 32 hypotheses or more than 256 (rounded down
+    to whole lane groups). Measured on 2 cores with 8 lanes: 128-144 lanes are fastest on
+    883 states, 32 on 4,546 states.
     """
-    per_group = mdp.n_states * np.dtype(dtype).itemsize * LANES  # rewards are recomputed per sweep
-    return int(LANES * min(256 // LANES, max(4, budget_bytes // per_group)))
+    per_hypothesis = mdp.n_states * np.dtype(dtype).itemsize  # rewards are recomputed per sweep
+    n = min(256, max(32, budget_bytes // per_hypothesis))
+    return int(lanes * max(1, n // lanes))
 
 
 def solve(
@@ -166,6 +172,7 @@ def solve(
     model: str = DEFAULT_MODEL,
     over_relax: bool = True,
     float32_start: bool = False,
+    lanes: int | None = None,
 ) -> SoftSolution:
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
@@ -205,6 +212,10 @@ def solve(
             ``iterations`` then counts the sweeps of both phases. Off by default: with
             over-relaxation a float32 sweep saves too little on a CPU to pay for the second
             phase (docs/performance.md); it may pay where float32 is much faster than float64.
+        lanes: hypotheses along the vector axis of one lane group; default: the width chosen
+            for this machine (:func:`expertise_irl.tuning.lane_width`; a set of fewer than
+            :data:`TUNE_MIN` hypotheses does not measure one). Results agree within the
+            tolerance whatever the width; only the speed depends on it.
 
     Raises:
         InputError: bad shapes, non-finite θ, or β <= 0.
@@ -221,12 +232,12 @@ def solve(
         bmin = np.full(len(uniq), np.inf)
         np.minimum.at(bmin, inv, beta)
         opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "dtype": dtype,
-                "over_relax": over_relax}
+                "over_relax": over_relax, "lanes": lanes}
         hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, model=model, **opts)
         sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, model=model, **opts)
         return sol._replace(iterations=sol.iterations + hard.iterations[inv])
     opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model,
-            "over_relax": over_relax}
+            "over_relax": over_relax, "lanes": lanes}
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
     H = len(theta)
@@ -243,7 +254,7 @@ def solve(
 
 
 def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
-           over_relax) -> SoftSolution:
+           over_relax, lanes) -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
@@ -252,10 +263,15 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     H, S, A = theta.shape[0], mdp.n_states, mdp.n_actions
     if max_iter is None:
         max_iter = default_max_iter(mdp, theta, beta, tol)
+    if lanes is None:  # small sets take the default rather than pause to measure one
+        lanes = lane_width(dtype, measure=H >= TUNE_MIN)
+    elif not (isinstance(lanes, int | np.integer) and lanes >= 1):
+        raise InputError(f"lanes must be a whole number >= 1, got {lanes!r}")
+    lanes = int(lanes)
     if chunk_size is None:
-        chunk_size = default_chunk_size(mdp, np.dtype(dtype))
-    groups = max(1, -(-min(int(chunk_size), H) // LANES))
-    slots = groups * LANES
+        chunk_size = default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
+    groups = max(1, -(-min(int(chunk_size), H) // lanes))
+    slots = groups * lanes
     prep = _prepared(mdp, dtype)
     scaled0 = np.zeros((H, prep.n_rows))
     if v_init is not None:
@@ -283,7 +299,7 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
         n = len(idx)
         padded = np.concatenate([idx, np.repeat(idx[-1:], size - n)])  # one shape for every batch
         v, it, delta = kernel.solve_pool(prep, jnp.asarray(weights[padded]), jnp.asarray(scaled0[padded]),
-                                         *consts, groups=groups, model=model, relax=over_relax)
+                                         *consts, groups=groups, lanes=lanes, model=model, relax=over_relax)
         delta = np.asarray(delta)[:n]
         if not np.all(delta == 0):  # also catches NaN
             j = int(np.flatnonzero(~(delta == 0))[0])

@@ -2,12 +2,13 @@
 
 Layout. States are split into two blocks by the parity of their distance to a goal
 (:func:`sweep_blocks`); a sweep updates block 0, then block 1 with the fresh block-0
-values (red-black Gauss–Seidel). Hypotheses are the minor axis, in *lanes* of 8 (one
-AVX-512 vector of float64), and several lane groups are vmapped side by side, which
-lets XLA spread them over the cores. Everything is in scaled units: with weights
-``w = θ/β`` the reward is ``r = w·φ`` and ``V = β v``. The backup itself is the observation
-model's (:func:`expertise_irl.models.backup`, a static argument of every kernel), and
-:func:`sweep` is also the fixed-point map of the differentiable likelihood.
+values (red-black Gauss–Seidel). Hypotheses are the minor axis, in *lanes* (8 float64 on
+an AVX-512 machine; the width is chosen per machine by :mod:`expertise_irl.tuning`), and
+several lane groups are vmapped side by side, which lets XLA spread them over the cores.
+Everything is in scaled units: with weights ``w = θ/β`` the reward is ``r = w·φ`` and
+``V = β v``. The backup itself is the observation model's
+(:func:`expertise_irl.models.backup`, a static argument of every kernel), and :func:`sweep`
+is also the fixed-point map of the differentiable likelihood.
 
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
@@ -35,8 +36,9 @@ from .models import backup
 
 jax.config.update("jax_enable_x64", True)
 
-#: Hypotheses along the minor (vector) axis of one group. XLA's CPU code ran about twice
-#: as fast per backup with 8 float64 lanes (one AVX-512 vector) as with 16 or more.
+#: Hypotheses along the minor (vector) axis of one group where none is chosen for the machine
+#: (:mod:`expertise_irl.tuning` picks it at first use). XLA's CPU code ran about twice as fast
+#: per backup with 8 float64 lanes (one AVX-512 vector) as with 16 or more on an AVX-512 machine.
 LANES = 8
 #: Sweeps between convergence checks (a converged lane may do up to CHECK_EVERY - 1 more,
 #: which only tightens it; they are counted in the reported sweeps). The last sweep of each
@@ -172,20 +174,20 @@ _relaxed_groups = jax.vmap(relaxed_sweep, in_axes=(None, 0, 0, None, None, 0))
 
 
 def _to_lanes(x, groups: int):
-    """``[groups * LANES, ...]`` -> ``[groups, ..., LANES]``."""
-    x = x.reshape(groups, LANES, *x.shape[1:])
+    """``[groups * lanes, ...]`` -> ``[groups, ..., lanes]``."""
+    x = x.reshape(groups, x.shape[0] // groups, *x.shape[1:])
     return jnp.moveaxis(x, 1, -1)
 
 
 def _from_lanes(x):
-    """``[groups, ..., LANES]`` -> ``[groups * LANES, ...]``."""
+    """``[groups, ..., lanes]`` -> ``[groups * lanes, ...]``."""
     x = jnp.moveaxis(x, -1, 1)
     return x.reshape(-1, *x.shape[2:])
 
 
-def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str = "maxent",
-               relax: bool = True):
-    """Solve every hypothesis with a pool of ``groups × LANES`` lanes that refill as they finish.
+def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int = LANES,
+               model: str = "maxent", relax: bool = True):
+    """Solve every hypothesis with a pool of ``groups × lanes`` lanes that refill as they finish.
 
     A lane starts with plain Gauss–Seidel sweeps. With ``relax``, one whose change shrank by
     at least 0.99 γ² per sweep over its second check (the slowest rate plain sweeps show,
@@ -203,7 +205,8 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     Returns ``(v [H, rows], sweeps [H], last change [H])``; the last change is 0 for every
     hypothesis that met its tolerance, and positive (or NaN) for one that did not.
     """
-    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups, model=model, relax=relax)
+    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups, lanes=lanes, model=model,
+                       relax=relax)
 
 
 @partial(jax.jit, static_argnames=("model",))
@@ -217,11 +220,12 @@ def _final_backup(prep: Prepared, w, v, gamma, model: str):
     return jax.vmap(one)(w, v)
 
 
-def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, model: str, relax: bool):
+def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
+               relax: bool):
     dtype = prep.features.dtype
     eps = jnp.finfo(dtype).eps
     H = weights.shape[0]
-    slots = groups * LANES
+    slots = groups * lanes
     weights = weights.astype(dtype)
     v0 = v0.astype(dtype)
     gamma = gamma.astype(dtype)
@@ -242,7 +246,7 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         # over-relaxation per lane: mode, checks in this mode, last change, values and change
         # where it started
         (jnp.full(slots, _MEASURE, jnp.int32), jnp.zeros(slots, jnp.int32), jnp.full(slots, jnp.inf, dtype),
-         jnp.zeros((groups, v0.shape[1], LANES), dtype), jnp.zeros(slots, dtype)),
+         jnp.zeros((groups, v0.shape[1], lanes), dtype), jnp.zeros(slots, dtype)),
     )
 
     def cond(c):
@@ -304,11 +308,11 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     return out[6], out[7], out[8]
 
 
-_solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "model", "relax"))
+_solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "lanes", "model", "relax"))
 
 
 def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):
-    """One more backup for ``[n, K]`` weights and ``[n, rows]`` values (n = groups × LANES).
+    """One more backup for ``[n, K]`` weights and ``[n, rows]`` values (n = groups × lanes).
 
     Returns ``(v [n, rows], log π [n, 2, A, n_block])``; each log-policy row is normalised by
     its own log-partition, so rows sum to 1 to machine precision even when |q| is large.

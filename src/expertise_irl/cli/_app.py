@@ -75,6 +75,18 @@ def _say(message: str) -> None:
     out.print(message, markup=False, highlight=False, soft_wrap=True)
 
 
+def prepare_solver() -> None:
+    """Before a command solves: JAX's persistent cache on, and on a machine's first use the
+    solver's lane width measured, with a note on stderr saying why there is a pause."""
+    from ..jax_cache import enable_jax_cache
+    from ..tuning import is_settled, lane_choice
+
+    enable_jax_cache()
+    if not is_settled("float64"):
+        _note("measuring the solver's lane width for this machine (once; see `expertise-irl tune`)")
+        lane_choice("float64")
+
+
 def _print_error(message: str) -> None:
     err.print("[bold red]error:[/] ", end="", highlight=False)
     err.print(message, markup=False, highlight=False, soft_wrap=True)

@@ -12,7 +12,6 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import InputError
-from ..jax_cache import enable_jax_cache
 from ._app import (
     ModelOption,
     _check_beta,
@@ -29,6 +28,7 @@ from ._app import (
     app,
     handles_errors,
     out,
+    prepare_solver,
 )
 
 
@@ -66,7 +66,7 @@ def demo(
     png, js = demo_outputs(out_dir, seed, map_spec)
     for p in (png, js):
         check_writable(p, force=force, inputs=_map_files(map_spec))
-    enable_jax_cache()
+    prepare_solver()
     t0 = time.perf_counter()
     with _progress() as bar:
         run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k, model=model,
@@ -229,7 +229,7 @@ def infer(
         raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {tol:g}")
     mdp, zone_map = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
-    enable_jax_cache()
+    prepare_solver()
     if method != "discrete":
         from ..inference.continuous import MethodOptions
 

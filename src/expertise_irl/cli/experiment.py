@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ._app import _say, app, err, handles_errors
+from ._app import _say, app, err, handles_errors, prepare_solver
 
 experiment_app = typer.Typer(
     help="Run a study's sweep (resumable, Parquet results), check on it, list the studies.",
@@ -72,6 +72,8 @@ def run_cmd(
         bar.update(state["task"], advance=1, rows=state["rows"])
 
     where = f"Dask scheduler {scheduler}" if scheduler else f"{workers or cores()} local worker(s)"
+    if scheduler is None:  # local workers read this machine's lane width instead of each measuring it
+        prepare_solver()
     with bar:
         summary = run(st, out, scale=scale, seed=seed, config=cfg, workers=workers, scheduler=scheduler,
                       retry_failed=retry_failed, on_start=on_start, on_result=on_result)

@@ -9,7 +9,17 @@ import numpy as np
 import typer
 
 from ..errors import InputError
-from ._app import _load_mdp, _note, _progress, _say, _solve_progress, _warn, app, handles_errors
+from ._app import (
+    _load_mdp,
+    _note,
+    _progress,
+    _say,
+    _solve_progress,
+    _warn,
+    app,
+    handles_errors,
+    prepare_solver,
+)
 
 THETAS_HELP = ("Θ: a preset (paper-sim, paper-real) or comma-separated component values; the unit-l1 "
                "grid over all features is built from them.")
@@ -68,6 +78,7 @@ def live(
         why = exc.strerror or exc
         raise InputError(f"--host {host} --port {port}: cannot listen there ({why})") from None
     try:
+        prepare_solver()
         with _progress() as bar:
             session = open_session(zone_map, hyp, out_dir, settings=settings, seed=seed,
                                    progress=_solve_progress(bar, "solving soft value iteration"))
@@ -128,6 +139,7 @@ def next_start_cmd(
     mdp, _ = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
     hyp = _hypotheses(thetas, betas, mdp.n_features)
+    prepare_solver()
     with _progress() as bar:
         prior = DiscreteBelief.from_mdp(mdp, hyp,
                                         progress=_solve_progress(bar, "solving soft value iteration"))

@@ -10,8 +10,18 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..jax_cache import enable_jax_cache
-from ._app import _load_mdp, _map_files, _note, _progress, _say, _solve_progress, app, handles_errors, out
+from ._app import (
+    _load_mdp,
+    _map_files,
+    _note,
+    _progress,
+    _say,
+    _solve_progress,
+    app,
+    handles_errors,
+    out,
+    prepare_solver,
+)
 
 
 @app.command("compare-models")
@@ -49,7 +59,7 @@ def compare_models_command(
         check_writable(out_path, force=force, inputs=[demos, *_map_files(map_spec), mdp_path])
     mdp, _ = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
-    enable_jax_cache()
+    prepare_solver()
     hyp = HypothesisSet(resolve_thetas(thetas, mdp.n_features), resolve_betas(betas))
     t0 = time.perf_counter()
     with _progress() as bar:

@@ -8,8 +8,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ..jax_cache import enable_jax_cache
-from ._app import ModelOption, _say, app, err, handles_errors
+from ._app import ModelOption, _say, app, err, handles_errors, prepare_solver
 from .recordings import FillGapsOption, MaxDtOption, RateOption, SnapOption
 
 #: Bundled example studies: name -> folder inside the package.
@@ -105,7 +104,7 @@ def study(
         if res is None:
             err.print(f"{phase}: {total} task(s), {total - todo} already done", highlight=False)
 
-    enable_jax_cache()
+    prepare_solver()
     try:
         outcome = run_study(path, out, opts, workers=workers, scheduler=scheduler, on_task=on_task)
     except StudyFailed as exc:
