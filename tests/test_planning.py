@@ -528,3 +528,20 @@ def test_over_relaxation_meets_the_guarantee_in_fewer_sweeps():
     assert sor.iterations[wander].sum() < 0.6 * plain.iterations[wander].sum()
     # A lane that tried SOR and fell back pays at most its trial (two checks) over plain.
     assert np.all(sor.iterations <= plain.iterations + 2 * CHECK_EVERY)
+
+
+def test_log_likelihood_counts_each_pair_once_across_row_blocks():
+    """Several blocks of rows (H = 600 is not a multiple of the block), repeated pairs and
+    impossible ones: the weighted sum equals the plain sum of every pair's log-probability."""
+    rng = np.random.default_rng(8)
+    H, S, A = 600, 7, 3
+    table = np.log(rng.dirichlet(np.ones(A), size=(H, S)))
+    table[rng.random((H, S, A)) < 0.02] = -np.inf
+    states, actions = rng.integers(0, S, 400), rng.integers(0, A, 400)
+    plain = pair_log_likelihoods(table, states, actions).sum(axis=1)
+    fast = log_likelihood(table, states, actions)
+    fin = np.isfinite(plain)
+    assert 0 < fin.sum() < H  # both kinds of rows occur
+    np.testing.assert_array_equal(np.isfinite(fast), fin)
+    assert not np.isnan(fast).any()
+    np.testing.assert_allclose(fast[fin], plain[fin], rtol=1e-12, atol=0)

@@ -23,6 +23,7 @@ from ..demos import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP
+from ..planning import log_likelihood as total_log_likelihood
 from ..planning import pair_log_likelihoods, solve
 
 
@@ -162,11 +163,11 @@ class DiscreteBelief:
         """Condition on (state, action) pairs (one trajectory or any batch of them)."""
         label = (lambda i: f"episode {episode} step {i}") if episode is not None else None
         states, actions = _check_pairs(self.log_policy, states, actions, label=label)
-        ll = pair_log_likelihoods(self.log_policy, states, actions)  # [H, N]
-        total = self.log_likelihood + ll.sum(axis=1)
+        total = self.log_likelihood + total_log_likelihood(self.log_policy, states, actions)
         alive = np.isfinite(self.log_prior + total)
         if not alive.any():
             # The step at which the last surviving hypothesis became impossible.
+            ll = pair_log_likelihoods(self.log_policy, states, actions)  # [H, N]
             prev_alive = np.isfinite(self.log_prior + self.log_likelihood)
             first_dead = np.argmax(~np.isfinite(ll), axis=1)  # first -inf pair per hypothesis
             t = int(first_dead[prev_alive].max()) if prev_alive.any() else 0
@@ -188,8 +189,17 @@ class DiscreteBelief:
         return self.update_pairs(states, actions, episode=episode)
 
     def update(self, trajs: Trajectories, *, per_action: bool = False) -> DiscreteBelief:
-        """Condition on every episode of ``trajs``, one trajectory (or one action) at a time."""
+        """Condition on every episode of ``trajs``, one trajectory (or one action) at a time.
+
+        The posterior is the same either way. Without ``per_action`` every pair is counted in
+        one pass; only if that leaves no hypothesis possible are the episodes taken one at a
+        time, to name the step where the last one became impossible.
+        """
         _check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
+        if not per_action and len(trajs):
+            total = self.log_likelihood + total_log_likelihood(self.log_policy, trajs.state, trajs.action)
+            if np.isfinite(self.log_prior + total).any():
+                return replace(self, log_likelihood=total, n_observed=self.n_observed + len(trajs))
         b = self
         for e, (states, actions) in zip(trajs.episode_ids, trajs.episodes(), strict=True):
             if per_action:
