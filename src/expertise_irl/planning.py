@@ -290,10 +290,8 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     size = -(-H // n_batches)
     consts = (jnp.asarray(mdp.gamma, dtype=jdtype), jnp.asarray(tol, dtype=jdtype), jnp.asarray(max_iter))
     value = np.empty((H, S))
-    log_pi = np.full((H, S, A), -np.inf)
+    log_pi = np.empty((H, S, A))  # every row is written below, -inf included
     iters = np.empty(H, dtype=np.int64)
-    active = np.flatnonzero(~mdp.terminal)
-    act_rows = prep.rows[active]
     for start in range(0, H, size):
         idx = order[start:start + size]
         n = len(idx)
@@ -318,14 +316,10 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
                                            groups=groups, model=model)
             m = min(slots, n - lo)
             hs = idx[lo:lo + m]
-            value[hs] = np.asarray(vf, dtype=np.float64)[:m][:, prep.rows] * beta[hs, None]
-            lp = np.asarray(lp, dtype=np.float64)[:m]  # [m, 2, A, n_block]
-            lp = np.concatenate([lp[:, 0], lp[:, 1]], axis=-1)  # [m, A, 2 n_block]
-            log_pi[np.ix_(hs, active)] = np.transpose(lp[:, :, act_rows], (0, 2, 1))
+            value[hs] = np.asarray(vf)[:m] * beta[hs, None]  # terminal states: 0
+            log_pi[hs] = np.asarray(lp)[:m]  # [m, S, A] in state order, -inf where unavailable
         if progress is not None:
             progress(min(start + size, H), H)
-    log_pi[:, ~mdp.available] = -np.inf
-    value[:, mdp.terminal] = 0.0
     return SoftSolution(value, log_pi, iters, beta.copy(), model)
 
 

@@ -211,13 +211,19 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
 
 @partial(jax.jit, static_argnames=("model",))
 def _final_backup(prep: Prepared, w, v, gamma, model: str):
-    """Values and log-policies from converged values, ``[G, K, L]`` and ``[G, rows, L]`` in lanes."""
+    """Values ``[n, S]`` and log-policies ``[n, S, A]`` in state order from converged values
+    ``[G, rows, L]`` in lanes (terminal states: value 0, log-policy -inf)."""
     def one(w, v):
         v0, lp0 = block_backup(prep, 0, w, v, gamma, model)
         v1, lp1 = block_backup(prep, 1, w, v, gamma, model)
         return jnp.concatenate([v0, v1, v[2 * prep.features.shape[2]:]], axis=0), jnp.stack([lp0, lp1])
 
-    return jax.vmap(one)(w, v)
+    vf, lp = jax.vmap(one)(w, v)
+    vf, lp = _from_lanes(vf), _from_lanes(lp)  # [n, rows], [n, 2, A, n_block]
+    n, _, A, nb = lp.shape
+    lp = jnp.moveaxis(lp, 1, 2).reshape(n, A, 2 * nb)
+    lp = jnp.concatenate([lp, jnp.full((n, A, 1), -jnp.inf, lp.dtype)], axis=2)  # the zero row
+    return vf[:, prep.rows], jnp.transpose(lp[:, :, prep.rows], (0, 2, 1))
 
 
 def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
@@ -314,10 +320,10 @@ _solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "lanes", "model", "
 def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):
     """One more backup for ``[n, K]`` weights and ``[n, rows]`` values (n = groups × lanes).
 
-    Returns ``(v [n, rows], log π [n, 2, A, n_block])``; each log-policy row is normalised by
-    its own log-partition, so rows sum to 1 to machine precision even when |q| is large.
+    Returns ``(v [n, S], log π [n, S, A])`` in state order (scaled values; terminal states 0 and
+    -inf, unavailable actions -inf); each log-policy row is normalised by its own
+    log-partition, so rows sum to 1 to machine precision even when |q| is large.
     """
     dtype = prep.features.dtype
-    vf, lp = _final_backup(prep, _to_lanes(jnp.asarray(weights, dtype), groups),
-                           _to_lanes(jnp.asarray(v, dtype), groups), jnp.asarray(gamma, dtype), model)
-    return _from_lanes(vf), _from_lanes(lp)
+    return _final_backup(prep, _to_lanes(jnp.asarray(weights, dtype), groups),
+                         _to_lanes(jnp.asarray(v, dtype), groups), jnp.asarray(gamma, dtype), model)
