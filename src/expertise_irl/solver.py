@@ -193,9 +193,10 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     at least 0.99 γ² per sweep over its second check (the slowest rate plain sweeps show,
     where a wandering person's walk rarely ends) switches to SOR with
     :func:`relaxation_factor` from its current values; if a later check shows it contracting
-    slower than γ² per sweep, it stays plain from then on, going back to those values unless
-    its own certified change is smaller by then. Only the plain last sweep of a check can
-    certify convergence.
+    slower than γ² per sweep, or further from convergence than at the start, it stays plain
+    from then on, going back to those values unless its own certified change is smaller by
+    then, so a failed trial never leaves a lane further from convergence than it began. Only the plain
+    last sweep of a check can certify convergence.
 
     Args:
         weights: ``[H, K]`` scaled reward weights θ/β.
@@ -272,13 +273,13 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         conv = active & (d <= jnp.maximum(base_thresh, 8.0 * eps * vmax))
         fin = conv | (active & (it >= max_iter))
         # Over-relaxation: after two plain checks, a lane contracting at about γ² per sweep
-        # starts it from its current values; one that then contracts slower than γ² per sweep
-        # (after a check's grace) stays plain from then on, from the start's values unless its
-        # own certified change is already smaller.
+        # starts it from its current values; one that then contracts slower than γ² per sweep,
+        # or whose change is larger than at the start (after a check's grace), stays plain from
+        # then on, from the start's values unless its own certified change is already smaller.
         checks = checks + 1
         rate = (d / d_prev) ** (1.0 / CHECK_EVERY)
         start = relax & (mode == _MEASURE) & (checks >= 2) & (rate >= 0.99 * gamma * gamma) & ~fin
-        back = (mode == _RELAX) & (checks >= 2) & ~(rate <= gamma * gamma) & ~fin
+        back = (mode == _RELAX) & (checks >= 2) & ~((rate <= gamma * gamma) & (d <= d_save)) & ~fin
         undo = back & ~(d < d_save)  # keep SOR's values where they are closer than the start's
         v = jnp.where(_to_lanes(undo, groups)[:, None, :], v_save, v)
         d = jnp.where(undo, d_save, d)
