@@ -189,14 +189,14 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
                model: str = "maxent", relax: bool = True):
     """Solve every hypothesis with a pool of ``groups × lanes`` lanes that refill as they finish.
 
-    A lane starts with plain Gauss–Seidel sweeps. With ``relax``, one whose change shrank by
-    at least 0.99 γ² per sweep over its second check (the slowest rate plain sweeps show,
-    where a wandering person's walk rarely ends) switches to SOR with
+    A lane starts with plain Gauss–Seidel sweeps. With ``relax``, one whose change over its
+    second check shrank by a factor no smaller than 0.99 γ² per sweep (the slowest rate red-black
+    sweeps show, where a wandering person's walk rarely ends) switches to SOR with
     :func:`relaxation_factor` from its current values; if a later check shows it contracting
     slower than γ² per sweep, or further from convergence than at the start, it stays plain
     from then on, going back to those values unless its own certified change is smaller by
-    then, so a failed trial never leaves a lane further from convergence than it began. Only the plain
-    last sweep of a check can certify convergence.
+    then, so a failed trial never leaves a lane further from convergence than it began. Only
+    the plain last sweep of a check can certify convergence.
 
     Args:
         weights: ``[H, K]`` scaled reward weights θ/β.
