@@ -33,7 +33,7 @@ from .tuning import lane_width
 jax.config.update("jax_enable_x64", True)
 
 DEFAULT_TOL = 1e-8
-#: Sets at least this large are solved in float32 first, then finished in float64 from there
+#: With ``float32_start``, sets at least this large are solved in float32 first, then in float64 from there
 #: (smaller ones would pay the float32 kernels' compilation for little gain).
 FLOAT32_START_MIN = 512
 #: Sets at least this large measure the machine's lane width if none is known yet
