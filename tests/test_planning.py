@@ -545,3 +545,26 @@ def test_log_likelihood_counts_each_pair_once_across_row_blocks():
     np.testing.assert_array_equal(np.isfinite(fast), fin)
     assert not np.isnan(fast).any()
     np.testing.assert_allclose(fast[fin], plain[fin], rtol=1e-12, atol=0)
+
+
+def test_log_likelihood_names_a_pair_outside_the_table():
+    table = np.log(np.full((3, 4, 2), 0.5))
+    assert log_likelihood(table, [0, 3], [1, 1]) == pytest.approx(2 * math.log(0.5))
+    message = r"pair 1: \(state 0, action 2\) is outside the table \(4 states, 2 actions\)"
+    with pytest.raises(InputError, match=message):
+        log_likelihood(table, [0, 0], [1, 2])  # would otherwise read state 1's action 0
+    with pytest.raises(InputError, match=r"pair 0: \(state 4, action 0\)"):
+        log_likelihood(table, [4] * 100, [0] * 100)
+
+
+def test_boltzmann_sweeps_plainly():
+    """Over-relaxation is not used for hard values (its trials fail there): the counts are a
+    plain solve's."""
+    rng = np.random.default_rng(12)
+    mdp = parse_map(ZONE_TEXT).to_mdp()
+    theta = np.stack([random_theta(rng, mdp.n_features) for _ in range(12)])
+    beta = np.repeat([0.01, 1.0, 10.0], 4)
+    a = solve(mdp, theta, beta, model="boltzmann")
+    b = solve(mdp, theta, beta, model="boltzmann", over_relax=False)
+    np.testing.assert_array_equal(a.iterations, b.iterations)
+    np.testing.assert_array_equal(a.value, b.value)

@@ -68,9 +68,14 @@ def test_a_damaged_cache_is_measured_again_and_rewritten(fresh, monkeypatch):
     fresh.write_text("{not json")
     assert tuning.lane_width() == 16 and calls == ["float64"]
     assert json.loads(fresh.read_text())[tuning.machine_key("float64")]["lanes"] == 16
-    monkeypatch.setattr(tuning, "_CHOSEN", {})
-    fresh.write_text(json.dumps({tuning.machine_key("float64"): {"lanes": "many"}}))
-    assert tuning.lane_width() == 16 and len(calls) == 2
+    # entries that are malformed inside are dropped and measured again, never a crash
+    key = tuning.machine_key("float64")
+    for n, entry in enumerate([{"lanes": "many"}, {"lanes": True, "backups_per_s": {}, "measured": ""},
+                               {"lanes": 8, "backups_per_s": {"x": 1}, "measured": ""},
+                               {"lanes": 8, "backups_per_s": [1], "measured": ""}], start=2):
+        monkeypatch.setattr(tuning, "_CHOSEN", {})
+        fresh.write_text(json.dumps({key: entry}))
+        assert tuning.lane_width() == 16 and len(calls) == n
 
 
 def test_an_unwritable_cache_still_gives_a_width(fresh, tmp_path, monkeypatch):
@@ -79,7 +84,11 @@ def test_an_unwritable_cache_still_gives_a_width(fresh, tmp_path, monkeypatch):
     (tmp_path / "a-file").write_text("")
     monkeypatch.setenv(tuning.TUNING_FILE_ENV, str(tmp_path / "a-file" / "tuning.json"))
     choice = tuning.lane_choice()
-    assert (choice.lanes, choice.source) == (16, "default")
+    assert (choice.lanes, choice.source) == (16, "uncached")
+    assert not list((tmp_path).glob(".*.tmp")) and not list(tmp_path.glob("a-file*/*"))
+    r = invoke("tune")
+    ok(r)
+    assert "lane width: 16 (measured just now, but" in r.stdout and "EXPERTISE_IRL_LANES=N" in r.stdout
 
 
 def test_the_environment_overrides_and_a_bad_value_is_named(fresh, monkeypatch):

@@ -189,9 +189,10 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
                model: str = "maxent", relax: bool = True):
     """Solve every hypothesis with a pool of ``groups × lanes`` lanes that refill as they finish.
 
-    A lane starts with plain Gauss–Seidel sweeps. With ``relax``, one whose change over its
-    second check shrank by a factor no smaller than 0.99 γ² per sweep (the slowest rate red-black
-    sweeps show, where a wandering person's walk rarely ends) switches to SOR with
+    A lane starts with plain Gauss–Seidel sweeps. With ``relax``, from its second check on, a
+    lane whose change over the last check shrank by a factor no smaller than 0.99 γ² per sweep
+    (the slowest rate red-black sweeps show, where a wandering person's walk rarely ends)
+    switches, once, to SOR with
     :func:`relaxation_factor` from its current values; if a later check shows it contracting
     slower than γ² per sweep, or further from convergence than at the start, it stays plain
     from then on, going back to those values unless its own certified change is smaller by
@@ -272,8 +273,8 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         vmax = _from_lanes(jnp.max(jnp.abs(v), axis=1))
         conv = active & (d <= jnp.maximum(base_thresh, 8.0 * eps * vmax))
         fin = conv | (active & (it >= max_iter))
-        # Over-relaxation: after two plain checks, a lane contracting at about γ² per sweep
-        # starts it from its current values; one that then contracts slower than γ² per sweep,
+        # Over-relaxation: from the second plain check on, a lane contracting at about γ² per
+        # sweep starts it from its current values; one that then contracts slower than γ² per sweep,
         # or whose change is larger than at the start (after a check's grace), stays plain from
         # then on, from the start's values unless its own certified change is already smaller.
         checks = checks + 1

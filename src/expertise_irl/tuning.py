@@ -13,7 +13,8 @@ mostly compilation) and keeps the fastest; later processes read the choice back.
   change of any of them measures again. ``EXPERTISE_IRL_TUNING_FILE`` names another file.
 - ``expertise-irl tune`` shows the choice and its measurements, and measures again on request.
 
-Results never depend on the width, only the speed does.
+Results agree within the solver's tolerance whatever the width (bit for bit between widths
+that XLA compiles alike); only the speed depends on it.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import functools
 import json
 import os
 import platform
+import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -51,8 +53,9 @@ class LaneChoice(NamedTuple):
     Attributes:
         lanes: hypotheses per lane group.
         source: ``"environment"`` (``EXPERTISE_IRL_LANES``), ``"cache"`` (measured earlier on
-            this machine), ``"measured"`` (just now) or ``"default"`` (the cache file could not
-            be written, or the backend has no candidates).
+            this machine), ``"measured"`` (just now, and cached), ``"uncached"`` (measured just
+            now, but the cache file could not be written, so each process measures again) or
+            ``"default"`` (the backend has no candidates).
         backups_per_s: the timing run's throughput per candidate width (empty if not measured).
         measured: when it was measured (ISO date, UTC), or ``""``.
     """
@@ -138,7 +141,7 @@ def lane_choice(dtype: str = "float64", *, again: bool = False) -> LaneChoice:
             "backups_per_s": {str(k): v for k, v in choice.backups_per_s.items()},
         }
         if not _write(path, table):
-            choice = choice._replace(source="default")
+            choice = choice._replace(source="uncached")
     _CHOSEN[dtype] = choice
     return choice
 
@@ -159,8 +162,7 @@ def _known(dtype: str) -> LaneChoice | None:
     entry = _read(tuning_file()).get(machine_key(dtype))
     if entry is None:
         return None
-    choice = LaneChoice(int(entry["lanes"]), "cache",
-                        {int(k): float(v) for k, v in entry["backups_per_s"].items()}, entry["measured"])
+    choice = LaneChoice(entry["lanes"], "cache", entry["backups_per_s"], entry["measured"])
     _CHOSEN[dtype] = choice
     return choice
 
@@ -177,26 +179,37 @@ def _read(path: Path) -> dict:
         return {}
     if not isinstance(table, dict):
         return {}
-    ok = {}
-    for k, v in table.items():
-        try:
-            lanes, rates, when = int(v["lanes"]), v["backups_per_s"], v["measured"]
-            if lanes >= 1 and isinstance(rates, dict) and isinstance(when, str):
-                ok[k] = v
-        except (KeyError, TypeError, ValueError):
-            continue
+    ok = {k: e for k, e in ((k, _entry(v)) for k, v in table.items()) if e is not None}
     _READ.update(stamp=stamp, table=ok)
     return dict(ok)
 
 
+def _entry(v) -> dict | None:
+    """One cached choice, checked and converted (``lanes`` a whole number >= 1, throughputs by
+    width), or None if anything in it is malformed."""
+    try:
+        lanes, rates, when = v["lanes"], v["backups_per_s"], v["measured"]
+        if type(lanes) is not int or lanes < 1 or not isinstance(when, str):
+            return None
+        rates = {int(k): float(r) for k, r in rates.items()}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    return {"lanes": lanes, "backups_per_s": rates, "measured": when}
+
+
 def _write(path: Path, table: dict) -> bool:
+    """Write the choices atomically (a temporary file renamed over the old one)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         tmp.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
         os.replace(tmp, path)
         return True
     except OSError:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
         return False
 
 

@@ -75,14 +75,15 @@ def _say(message: str) -> None:
     out.print(message, markup=False, highlight=False, soft_wrap=True)
 
 
-def prepare_solver() -> None:
-    """Before a command solves: JAX's persistent cache on, and on a machine's first use the
-    solver's lane width measured, with a note on stderr saying why there is a pause."""
+def prepare_solver(*, measure: bool = True) -> None:
+    """Before a command solves: JAX's persistent cache on and, with ``measure``, on a machine's
+    first use the solver's lane width measured, with a note on stderr saying why there is a
+    pause (commands whose solves run elsewhere or on one hypothesis pass ``measure=False``)."""
     from ..jax_cache import enable_jax_cache
     from ..tuning import is_settled, lane_choice
 
     enable_jax_cache()
-    if not is_settled("float64"):
+    if measure and not is_settled("float64"):
         _note("measuring the solver's lane width for this machine (once; see `expertise-irl tune`)")
         lane_choice("float64")
 

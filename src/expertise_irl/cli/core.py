@@ -229,7 +229,7 @@ def infer(
         raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {tol:g}")
     mdp, zone_map = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
-    prepare_solver()
+    prepare_solver(measure=method == "discrete")  # the other methods solve one hypothesis at a time
     if method != "discrete":
         from ..inference.continuous import MethodOptions
 

@@ -104,7 +104,7 @@ def study(
         if res is None:
             err.print(f"{phase}: {total} task(s), {total - todo} already done", highlight=False)
 
-    prepare_solver()
+    prepare_solver(measure=scheduler is None)  # local workers read this machine's lane width
     try:
         outcome = run_study(path, out, opts, workers=workers, scheduler=scheduler, on_task=on_task)
     except StudyFailed as exc:

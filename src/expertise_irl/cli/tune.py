@@ -13,7 +13,9 @@ _SOURCES = {
     "environment": "set by {env}",
     "cache": "measured on {when}, read from the cache",
     "measured": "measured just now, cached",
-    "default": "the built-in default: the cache file could not be written, or this backend has no candidates",
+    "uncached": "measured just now, but {file} could not be written, so every process measures again; "
+                "set {env}=N to skip that",
+    "default": "the built-in default: this backend has no candidates to measure",
 }
 
 
@@ -38,7 +40,7 @@ def tune(
     if again and choice.source == "environment":
         _note(f"{LANES_ENV} is set, so nothing was measured")
     _say(f"machine: {machine_key(dtype)}")
-    how = _SOURCES[choice.source].format(env=LANES_ENV, when=choice.measured)
+    how = _SOURCES[choice.source].format(env=LANES_ENV, when=choice.measured, file=tuning_file())
     _say(f"lane width: {choice.lanes} ({how})")
     for lanes, rate in sorted(choice.backups_per_s.items()):
         mark = "  <- chosen" if lanes == choice.lanes else ""
