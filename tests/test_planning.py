@@ -550,7 +550,7 @@ def test_log_likelihood_counts_each_pair_once_across_row_blocks():
 def test_log_likelihood_names_a_pair_outside_the_table():
     table = np.log(np.full((3, 4, 2), 0.5))
     assert log_likelihood(table, [0, 3], [1, 1]) == pytest.approx(2 * math.log(0.5))
-    message = r"pair 1: \(state 0, action 2\) is outside the table \(4 states, 2 actions\)"
+    message = r"pair 1: \(state 0, action 2\) is outside the MDP \(4 states, 2 actions\)"
     with pytest.raises(InputError, match=message):
         log_likelihood(table, [0, 0], [1, 2])  # would otherwise read state 1's action 0
     with pytest.raises(InputError, match=r"pair 0: \(state 4, action 0\)"):

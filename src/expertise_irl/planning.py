@@ -325,6 +325,28 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     return SoftSolution(value, log_pi, iters, beta.copy(), model)
 
 
+def check_pairs(log_policy: np.ndarray, states, actions, *, label=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(states, actions)`` as int64 arrays, checked against a ``[H, S, A]`` table's shape.
+
+    ``label(i)`` names pair ``i`` in the message (default ``"pair i"``); a pair outside the
+    table is an :class:`InputError`, never a read of a neighbouring entry.
+    """
+    states = np.atleast_1d(np.asarray(states, dtype=np.int64))
+    actions = np.atleast_1d(np.asarray(actions, dtype=np.int64))
+    _, S, A = log_policy.shape
+    if states.shape != actions.shape or states.ndim != 1:
+        raise InputError("states and actions must be 1-D arrays of equal length")
+    bad = (states < 0) | (states >= S) | (actions < 0) | (actions >= A)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        at = label(i) if label is not None else f"pair {i}"
+        raise InputError(
+            f"{at}: (state {states[i]}, action {actions[i]}) is outside the MDP "
+            f"({S} states, {A} actions)"
+        )
+    return states, actions
+
+
 def pair_log_likelihoods(log_policy: np.ndarray, states, actions) -> np.ndarray:
     """``[H, N]`` log π_h(a_n | s_n) for observed pairs (``-inf`` if impossible)."""
     states = np.asarray(states, dtype=np.int64)
@@ -340,16 +362,8 @@ def log_likelihood(log_policy: np.ndarray, states, actions) -> np.ndarray:
     read in blocks of rows that stay in cache while their columns are gathered (5× faster
     than one gather over the whole table at 18,186 hypotheses).
     """
-    states = np.asarray(states, dtype=np.int64)
-    actions = np.asarray(actions, dtype=np.int64)
+    states, actions = check_pairs(log_policy, states, actions)
     H, S, A = log_policy.shape
-    if states.shape != actions.shape or states.ndim != 1:
-        raise InputError("states and actions must be 1-D arrays of equal length")
-    bad = (states < 0) | (states >= S) | (actions < 0) | (actions >= A)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"pair {i}: (state {states[i]}, action {actions[i]}) is outside the table "
-                         f"({S} states, {A} actions)")
     if len(states) <= _DIRECT_PAIRS:  # a few pairs (one action at a time): gather them directly
         return log_policy[:, states, actions].sum(axis=1)
     pairs, counts = np.unique(states * A + actions, return_counts=True)

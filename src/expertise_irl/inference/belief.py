@@ -23,8 +23,8 @@ from ..demos import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP
+from ..planning import check_pairs, pair_log_likelihoods, solve
 from ..planning import log_likelihood as total_log_likelihood
-from ..planning import pair_log_likelihoods, solve
 
 
 class Trace(NamedTuple):
@@ -71,24 +71,6 @@ def _entropy(p: np.ndarray, lp: np.ndarray, axis: int = 0) -> np.ndarray:
     """−Σ p log p, with 0 log 0 = 0 (no 0·(−∞) is ever evaluated)."""
     terms = np.multiply(p, lp, out=np.zeros_like(p), where=p > 0)
     return -np.sum(terms, axis=axis)
-
-
-def _check_pairs(log_policy: np.ndarray, states, actions, *, label=None) -> tuple[np.ndarray, np.ndarray]:
-    """Validate pairs against the table's shape. ``label(i)`` names pair i in messages."""
-    states = np.atleast_1d(np.asarray(states, dtype=np.int64))
-    actions = np.atleast_1d(np.asarray(actions, dtype=np.int64))
-    _, S, A = log_policy.shape
-    if states.shape != actions.shape or states.ndim != 1:
-        raise InputError("states and actions must be 1-D arrays of equal length")
-    bad = (states < 0) | (states >= S) | (actions < 0) | (actions >= A)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        at = label(i) if label is not None else f"pair {i}"
-        raise InputError(
-            f"{at}: (state {states[i]}, action {actions[i]}) is outside the MDP "
-            f"({S} states, {A} actions)"
-        )
-    return states, actions
 
 
 def _traj_label(trajs: Trajectories):
@@ -162,7 +144,7 @@ class DiscreteBelief:
     def update_pairs(self, states, actions, *, episode: int | None = None) -> DiscreteBelief:
         """Condition on (state, action) pairs (one trajectory or any batch of them)."""
         label = (lambda i: f"episode {episode} step {i}") if episode is not None else None
-        states, actions = _check_pairs(self.log_policy, states, actions, label=label)
+        states, actions = check_pairs(self.log_policy, states, actions, label=label)
         total = self.log_likelihood + total_log_likelihood(self.log_policy, states, actions)
         alive = np.isfinite(self.log_prior + total)
         if not alive.any():
@@ -195,7 +177,7 @@ class DiscreteBelief:
         one pass; only if that leaves no hypothesis possible are the episodes taken one at a
         time, to name the step where the last one became impossible.
         """
-        _check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
+        check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         if not per_action and len(trajs):
             total = self.log_likelihood + total_log_likelihood(self.log_policy, trajs.state, trajs.action)
             if np.isfinite(self.log_prior + total).any():
@@ -291,7 +273,7 @@ class DiscreteBelief:
         marginal. Equivalent to streaming :meth:`update_action` over every pair, but
         vectorised. ``max_block`` bounds the ``H × pairs`` block held in memory at once.
         """
-        states, actions = _check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
+        states, actions = check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         H, N = len(self.hypotheses), len(states)
         theta, beta = self.hypotheses.theta, self.hypotheses.beta
         grid = np.unique(beta)  # ascending β values of the set
