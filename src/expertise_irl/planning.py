@@ -365,7 +365,7 @@ def log_likelihood(log_policy: np.ndarray, states, actions) -> np.ndarray:
     states, actions = check_pairs(log_policy, states, actions)
     H, S, A = log_policy.shape
     if len(states) <= _DIRECT_PAIRS:  # a few pairs (one action at a time): gather them directly
-        return log_policy[:, states, actions].sum(axis=1)
+        return pair_log_likelihoods(log_policy, states, actions).sum(axis=1)
     pairs, counts = np.unique(states * A + actions, return_counts=True)
     weights = counts.astype(np.float64)
     table = log_policy.reshape(H, S * A)

@@ -17,9 +17,9 @@ costs the sum of its members' sweeps, not its slowest member's times the batch s
 Over-relaxation. A lane whose Gauss–Seidel sweeps contract at the slowest possible rate
 (about γ² per sweep: a person who wanders, large β) switches to successive over-relaxation,
 which on ``zones30`` needs a quarter of the sweeps; a lane on which it does not beat plain
-sweeps goes back to the values it had and stays plain. Every check's last sweep is plain, and
-only its change certifies the tolerance, so the guarantee is the plain sweeps' whatever
-happened before.
+sweeps stays plain from the better of its values before and after the trial. Every check's
+last sweep is plain, and only its change certifies the tolerance, so the guarantee is the
+plain sweeps' whatever happened before.
 """
 
 from __future__ import annotations
@@ -145,32 +145,26 @@ def block_backup(prep: Prepared, b: int, w, v, gamma, model: str):
     return backup(model, q, prep.log_n_actions[b][:, None], axis=0)
 
 
-def sweep(prep: Prepared, w, v, gamma, model: str):
-    """One red-black sweep of one lane group: (v [rows, L], largest change per lane [L])."""
+def sweep(prep: Prepared, w, v, gamma, model: str, omega=None):
+    """One red-black sweep of one lane group: (v [rows, L], largest change per lane [L]).
+
+    With ``omega [L]`` it is an SOR sweep: each block moves ``omega`` times its Gauss–Seidel
+    step (the change reported is still the Gauss–Seidel step's).
+    """
     nb = prep.features.shape[2]  # static (n_block itself is traced inside jit)
     delta = jnp.zeros(v.shape[1], v.dtype)
     for b in (0, 1):
         new, _ = block_backup(prep, b, w, v, gamma, model)
-        delta = jnp.maximum(delta, jnp.max(jnp.abs(new - v[b * nb:(b + 1) * nb]), axis=0))
+        old = v[b * nb:(b + 1) * nb]
+        delta = jnp.maximum(delta, jnp.max(jnp.abs(new - old), axis=0))
+        if omega is not None:
+            new = new + (omega - 1.0) * (new - old)
         v = jax.lax.dynamic_update_slice_in_dim(v, new, b * nb, axis=0)
     return v, delta
 
 
-def relaxed_sweep(prep: Prepared, w, v, gamma, model: str, omega):
-    """One red-black SOR sweep: each block moves ``omega [L]`` times its Gauss–Seidel step.
-
-    With ``omega == 1`` a lane's values are exactly those of :func:`sweep`.
-    """
-    nb = prep.features.shape[2]
-    for b in (0, 1):
-        new, _ = block_backup(prep, b, w, v, gamma, model)
-        old = v[b * nb:(b + 1) * nb]
-        v = jax.lax.dynamic_update_slice_in_dim(v, new + (omega - 1.0) * (new - old), b * nb, axis=0)
-    return v
-
-
 _sweep_groups = jax.vmap(sweep, in_axes=(None, 0, 0, None, None))
-_relaxed_groups = jax.vmap(relaxed_sweep, in_axes=(None, 0, 0, None, None, 0))
+_relaxed_groups = jax.vmap(sweep, in_axes=(None, 0, 0, None, None, 0))
 
 
 def _to_lanes(x, groups: int):
@@ -266,7 +260,7 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         # CHECK_EVERY - 1 sweeps (over-relaxed in lanes that chose it), then a plain one.
         omega_l = _to_lanes(jnp.where(mode == _RELAX, omega, 1.0).astype(dtype), groups)
         v = jax.lax.fori_loop(0, CHECK_EVERY - 1,
-                              lambda _, v: _relaxed_groups(prep, w, v, gamma, model, omega_l), v)
+                              lambda _, v: _relaxed_groups(prep, w, v, gamma, model, omega_l)[0], v)
         v, d = _sweep_groups(prep, w, v, gamma, model)
         d = _from_lanes(d)
         it = it + CHECK_EVERY * active.astype(it.dtype)
