@@ -3,25 +3,15 @@
 from __future__ import annotations
 
 import os
-import platform
 import sys
 from datetime import UTC, datetime
 
-#: SIMD extensions that matter for NumPy's and XLA's exp/log and reduction kernels.
-SIMD_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512vl", "neon", "asimd")
-
 
 def cpu_flags() -> str:
-    """The SIMD flags of this CPU among :data:`SIMD_FLAGS` (from /proc/cpuinfo)."""
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith(("flags", "Features")):
-                    have = set(line.split(":", 1)[1].split())
-                    return " ".join(f for f in SIMD_FLAGS if f in have) or "(none of interest)"
-    except OSError:
-        pass
-    return "unknown"
+    """The SIMD flags of this CPU that change NumPy's and XLA's code (the solver's tuning key's)."""
+    from expertise_irl.tuning import cpu_description
+
+    return cpu_description()[1] or "(none of interest)"
 
 
 def machine_info() -> dict[str, object]:
@@ -32,15 +22,9 @@ def machine_info() -> dict[str, object]:
 
     lanes = lane_choice("float64")  # measured here at the machine's first use
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
+    from expertise_irl.tuning import cpu_description
+
+    cpu = cpu_description()[0]
     try:
         mem_gib = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
     except (ValueError, OSError):
@@ -60,6 +44,16 @@ def machine_info() -> dict[str, object]:
         "solver_lanes_backups_per_s": {str(k): round(v) for k, v in lanes.backups_per_s.items()},
         "command": " ".join([os.path.basename(sys.executable), *sys.argv]),
     }
+
+
+def report(result: dict, json_path) -> None:
+    """Print a benchmark's result as ``key: value`` lines, and write it as JSON if asked."""
+    import json
+
+    for k, v in result.items():
+        print(f"{k}: {v}")
+    if json_path:
+        json_path.write_text(json.dumps(result, indent=2) + "\n")
 
 
 def timed_cli(args: list[str], jax_cache) -> float:

@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _machine import machine_info, timed_cli
+from _machine import machine_info, report, timed_cli
 
 THETA = "0.3,0.5,0,0.7,1"
 BETA = 0.5
@@ -71,10 +71,7 @@ def main() -> None:
               "theta_star": THETA, "beta_star": BETA,
               **{f"{k}_{m}": v for k, r in runs.items() for m, v in r.items()},
               "estimate": answers[0], "identical_estimates": same}
-    for k, v in result.items():
-        print(f"{k}: {v}")
-    if args.json:
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
+    report(result, args.json)
     if not same:
         raise SystemExit("the two runs wrote different estimates")
 

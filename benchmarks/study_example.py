@@ -13,11 +13,10 @@ processes, both solve phases, the tables and the eight figures.
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 from pathlib import Path
 
-from _machine import machine_info, timed_cli
+from _machine import machine_info, report, timed_cli
 
 ARGS = ["--fill-gaps", "--model", "maxent-relative"]
 
@@ -41,10 +40,7 @@ def main() -> None:
         same = (tmp / "cold" / "study.csv").read_bytes() == (tmp / "warm" / "study.csv").read_bytes()
     result = {**info, "study": "example", "args": ARGS, "workers": args.workers, "cold_s": round(cold, 1),
               "warm_s": round(warm, 1), "identical_study_csv": same}
-    for k, v in result.items():
-        print(f"{k}: {v}")
-    if args.json:
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
+    report(result, args.json)
     if not same:
         raise SystemExit("the two runs wrote different study.csv files")
 

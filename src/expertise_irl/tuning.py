@@ -40,7 +40,7 @@ CANDIDATES = {"cpu": (4, 8, 16), "gpu": (32, 128, 512)}
 _SWEEPS = 48
 _POOLS = 4
 #: SIMD flags that change XLA's and NumPy's code (from /proc/cpuinfo).
-_SIMD = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512dq", "avx512vl",
+SIMD_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512dq", "avx512vl",
          "neon", "asimd", "sve")
 
 _CHOSEN: dict[str, LaneChoice] = {}
@@ -73,8 +73,9 @@ def tuning_file() -> Path:
 
 
 @functools.cache
-def _cpu() -> tuple[str, str]:
-    """(CPU model, its SIMD flags among :data:`_SIMD`) from /proc/cpuinfo where there is one."""
+def cpu_description() -> tuple[str, str]:
+    """(CPU model, its SIMD flags among :data:`SIMD_FLAGS`) from /proc/cpuinfo where there is
+    one (flags ``""`` where none is found)."""
     cpu, flags = platform.processor() or platform.machine(), ""
     try:
         with open("/proc/cpuinfo") as fh:
@@ -83,7 +84,7 @@ def _cpu() -> tuple[str, str]:
                     cpu = line.split(":", 1)[1].strip()
                 elif line.startswith(("flags", "Features")) and not flags:
                     have = set(line.split(":", 1)[1].split())
-                    flags = " ".join(f for f in _SIMD if f in have)
+                    flags = " ".join(f for f in SIMD_FLAGS if f in have)
     except OSError:
         pass
     return cpu, flags
@@ -94,7 +95,7 @@ def machine_key(dtype: str) -> str:
     import jax
     import jaxlib
 
-    cpu, flags = _cpu()
+    cpu, flags = cpu_description()
     device = jax.devices()[0]
     return " | ".join([
         f"cpu={cpu}", f"flags={flags}", f"cores={os.cpu_count()}", f"jax={jax.__version__}",
