@@ -9,7 +9,7 @@ from datetime import UTC, datetime
 
 def cpu_flags() -> str:
     """The SIMD flags of this CPU that change NumPy's and XLA's code (the solver's tuning key's)."""
-    from expertise_irl.tuning import cpu_description
+    from expertise_irl.planning.tuning import cpu_description
 
     return cpu_description()[1] or "(none of interest)"
 
@@ -18,11 +18,11 @@ def machine_info() -> dict[str, object]:
     import jax
     import numpy as np
 
-    from expertise_irl.tuning import lane_choice
+    from expertise_irl.planning.tuning import lane_choice
 
     lanes = lane_choice("float64")  # measured here at the machine's first use
 
-    from expertise_irl.tuning import cpu_description
+    from expertise_irl.planning.tuning import cpu_description
 
     cpu = cpu_description()[0]
     try:

@@ -28,13 +28,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
+from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.demos import simulate
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, sample_thetas, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.inference.birl import extended_birl
-from expertise_irl.inference.conditions import out_of_set_truth
 from expertise_irl.inference.gradient import map_estimate
+from expertise_irl.inference.hypothesis_sets import out_of_set_truth
 from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.metrics import cosine_similarity, expertise_distance, policy_regret
 from expertise_irl.worlds.zones import generate_map

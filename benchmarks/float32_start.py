@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
 
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, theta_grid
-from expertise_irl.planning import solve
+from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.maps import resolve_world
 
 

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
 
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.planning import solve
+from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled
 
 

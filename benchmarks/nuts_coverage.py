@@ -33,8 +33,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
+from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.demos import simulate
 from expertise_irl.inference.continuous import MethodOptions, run_method
 from expertise_irl.worlds.zones import load_bundled
 

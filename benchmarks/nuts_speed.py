@@ -36,12 +36,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
+from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.demos import simulate
 from expertise_irl.inference.diagnostics import chain_statistics
 from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.inference.priors import numpyro_priors
-from expertise_irl.likelihood import make_log_likelihood, pair_counts
+from expertise_irl.inference.task_likelihood import pair_counts
+from expertise_irl.planning.differentiable import make_log_likelihood
 from expertise_irl.worlds.zones import load_bundled
 
 warnings.filterwarnings("ignore", category=FutureWarning)

@@ -10,7 +10,7 @@ Workloads (paper sizes):
 
 Implementations, on the same inputs and at matched accuracy (the error of every
 V/β bounded by tol = 1e-8 nats):
-  library  expertise_irl.planning.solve, steady state (a second identical call; the
+  library  expertise_irl.planning.soft_vi.solve, steady state (a second identical call; the
            first call's extra time, JAX compilation, is reported separately);
   naive    benchmarks/naive_soft_vi.py, a per-hypothesis NumPy loop written from
            Eqs. 8-9. On workload c it runs on an evenly spread subset and its time is
@@ -91,7 +91,7 @@ def _peak_mb() -> float:
 
 
 def run_library(name: str, n_check: int, queue) -> None:
-    from expertise_irl.planning import solve
+    from expertise_irl.planning.soft_vi import solve
 
     mdp, theta, beta, _ = build_workload(name)
     base = _peak_mb()
@@ -192,7 +192,7 @@ def measure_xla_ceiling(n_states: int, n_actions: int, seconds: float = 1.0, gro
     import jax
     import jax.numpy as jnp
 
-    from expertise_irl.tuning import lane_width
+    from expertise_irl.planning.tuning import lane_width
 
     LANES = lane_width()
     jax.config.update("jax_enable_x64", True)
@@ -245,7 +245,7 @@ def bandwidth_backups(bandwidth: float, n_states: int, n_actions: int, n_feature
     group, the values read and written (S × lanes × 8 B × 2) and the features (S × A × K × 8 B),
     for S × A × lanes backups (lanes: the solver's width on this machine). A bound that matters
     only when they do not fit in cache."""
-    from expertise_irl.tuning import lane_width
+    from expertise_irl.planning.tuning import lane_width
 
     LANES = lane_width()
     bytes_per_sweep = n_states * LANES * 8 * 2 + n_states * n_actions * n_features * 8

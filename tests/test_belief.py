@@ -7,9 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
+from expertise_irl.demos.simulation import simulate
 from reference_solver import soft_value_iteration
 
-from expertise_irl.demos import Trajectories, simulate
+from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import (
     BETA_PRESETS,
@@ -21,8 +22,8 @@ from expertise_irl.hypotheses import (
     theta_grid,
 )
 from expertise_irl.inference.belief import DiscreteBelief
-from expertise_irl.inference.conditions import sample_in_set_truth
-from expertise_irl.planning import pair_log_likelihoods
+from expertise_irl.inference.hypothesis_sets import sample_in_set_truth
+from expertise_irl.planning.table_likelihood import pair_log_likelihoods
 from expertise_irl.worlds.zones import load_bundled
 
 EPS = float(np.finfo(np.float64).eps)

@@ -12,9 +12,10 @@ import math
 
 import numpy as np
 import pytest
+from expertise_irl.demos.simulation import simulate
 from reference_solver import soft_value_iteration
 
-from expertise_irl.demos import Trajectories, simulate
+from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.inference.birl import (
     _count_table,

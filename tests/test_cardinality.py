@@ -13,7 +13,7 @@ from expertise_irl.experiments import load
 from expertise_irl.experiments.engine import run
 from expertise_irl.experiments.studies import get_study
 from expertise_irl.experiments.studies.cardinality import SCALES
-from expertise_irl.experiments.studies.conditions import ConditionsConfig, run_task
+from expertise_irl.experiments.studies.fixed_vs_joint import ConditionsConfig, run_task
 
 STUDY = get_study("cardinality")
 

@@ -15,7 +15,7 @@ from expertise_irl.hypotheses import (
     sample_thetas,
     theta_grid,
 )
-from expertise_irl.inference.conditions import (
+from expertise_irl.inference.hypothesis_sets import (
     fixed_beta_set,
     fixed_theta_set,
     full_set,
@@ -209,7 +209,7 @@ def test_seeded_reproducibility(all_thetas, theta_k):
 
 
 def test_set_composition_by_hand():
-    from expertise_irl.inference.conditions import set_composition
+    from expertise_irl.inference.hypothesis_sets import set_composition
 
     thetas = np.array([[1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
     got = set_composition([1.0, 0.0, 0.0], 0.7, thetas, [0.01, 0.5, 1.0])

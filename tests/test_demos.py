@@ -4,18 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
+from expertise_irl.demos.simulation import DEFAULT_MAX_STEPS, simulate
 
-from expertise_irl.demos import (
-    DEFAULT_MAX_STEPS,
-    Trajectories,
-    read_demos_csv,
-    simulate,
-    validate,
-    write_demos_csv,
-)
+from expertise_irl.demos.trajectories import Trajectories, validate
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.planning import solve
+from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled, parse_map
 
 # Small map for the CSV error cases. States, row-major:

@@ -21,7 +21,7 @@ from expertise_irl.errors import InputError
 from expertise_irl.experiments import load
 from expertise_irl.experiments.engine import FAULTS_ENV, execute_task, run, seed_sequence, status
 from expertise_irl.experiments.studies import get_study
-from expertise_irl.experiments.studies.conditions import SCALES, person
+from expertise_irl.experiments.studies.fixed_vs_joint import SCALES, person
 
 STUDY = get_study("conditions")
 SMOKE = SCALES["smoke"]
@@ -298,14 +298,14 @@ def test_manifest_records_the_sweep(reference):
 def test_the_config_model_reaches_the_people_and_the_inference():
     """``model`` drives both the simulated person and the solve: under maxent-relative a person's
     episodes follow that model's policy (the same seeds give other actions), and a bad name is refused."""
-    from expertise_irl.planning import solve
+    from expertise_irl.planning.soft_vi import solve
 
     rel = dataclasses.replace(SMOKE, model="maxent-relative")
     p_rel = person(rel, 0, 1, 0, 5, "low", "in_set")
     p_ment = person(SMOKE, 0, 1, 0, 5, "low", "in_set")
     assert np.array_equal(p_rel.theta, p_ment.theta) and p_rel.beta == p_ment.beta  # same truth
     assert not np.array_equal(p_rel.trajectories.action, p_ment.trajectories.action)
-    from expertise_irl.experiments.studies.conditions import environment
+    from expertise_irl.experiments.studies.fixed_vs_joint import environment
 
     _, mdp = environment(rel, 0, 1)
     v = solve(mdp, p_rel.theta, p_rel.beta, model="maxent-relative").value[0]

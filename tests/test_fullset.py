@@ -8,7 +8,7 @@ import pytest
 
 from expertise_irl.experiments import load
 from expertise_irl.experiments.engine import run
-from expertise_irl.experiments.studies import conditions as cond
+from expertise_irl.experiments.studies import fixed_vs_joint as cond
 from expertise_irl.experiments.studies import get_study
 from expertise_irl.experiments.studies import optimisation as opt
 from expertise_irl.experiments.studies.fullset import SCALES

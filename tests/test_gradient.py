@@ -8,14 +8,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.demos import Trajectories, simulate
+from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.inference.gradient import BETA_PRIOR_MEAN, BETA_PRIOR_SD, map_estimate
 from expertise_irl.inference.nuts import nuts_posterior
-from expertise_irl.likelihood import make_log_likelihood, pair_counts
+from expertise_irl.inference.task_likelihood import pair_counts
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.planning import log_likelihood, solve
+from expertise_irl.planning.differentiable import make_log_likelihood
+from expertise_irl.planning.soft_vi import solve
+from expertise_irl.planning.table_likelihood import log_likelihood
 from expertise_irl.worlds.zones import load_bundled
 
 warnings.filterwarnings("ignore", category=FutureWarning)  # ArviZ's refactor notice

@@ -8,15 +8,16 @@ import json
 from collections import deque
 
 import pytest
+from expertise_irl.demos.csv_io import read_demos_csv
 from starlette.testclient import TestClient
 from test_cli import assert_input_error, invoke, ok
 
-from expertise_irl.demos import read_demos_csv
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.live.server import LOOPBACK_NAMES, MAX_MESSAGE, create_app
 from expertise_irl.live.session import open_session
-from expertise_irl.worlds.zones import ACTION_NAMES, parse_map
+from expertise_irl.mdp import ACTION_NAMES
+from expertise_irl.worlds.zones import parse_map
 
 MAP = """\
 .....
@@ -387,8 +388,8 @@ def demo_rows(path) -> list[list[str]]:
 
 
 def test_floor_plan_session_records_headings_and_resumes(tmp_path, plan_path, hyp3):
+    from expertise_irl.plots.floorplan import CELL_COLORS, GOAL_FILL, ROAD_COLOR
     from expertise_irl.worlds.maps import resolve_world
-    from expertise_irl.worlds.warehouse_render import CELL_COLORS, GOAL_FILL, ROAD_COLOR
 
     plan = resolve_world(plan_path)
     out = tmp_path / "rec"

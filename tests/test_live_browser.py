@@ -22,10 +22,11 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from expertise_irl.demos.csv_io import read_demos_csv
 from test_live import path_to_goal
 
-from expertise_irl.demos import read_demos_csv
-from expertise_irl.worlds.zones import ACTION_NAMES, parse_map
+from expertise_irl.mdp import ACTION_NAMES
+from expertise_irl.worlds.zones import parse_map
 
 CHROMIUM = shutil.which("chromium")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed "

@@ -10,7 +10,7 @@ import pytest
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.metrics import cosine_similarity, expertise_distance, policy_regret, regret_from_values
-from expertise_irl.planning import solve
+from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled
 
 # solve()'s default tol bounds the error of V/β by 1e-8 nats, so V is within β·1e-8 of the

@@ -6,14 +6,15 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
+from expertise_irl.demos.simulation import simulate
 from reference_solver import random_mdp, reference
 
-from expertise_irl.demos import simulate
 from expertise_irl.errors import InputError
-from expertise_irl.likelihood import make_log_likelihood, pair_counts
+from expertise_irl.inference.task_likelihood import pair_counts
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.models import MODELS
-from expertise_irl.planning import solve
+from expertise_irl.planning.differentiable import make_log_likelihood
+from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled
 
 BETAS = np.array([0.05, 0.3, 1.0, 5.0])

@@ -9,14 +9,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.demos import simulate
 from expertise_irl.errors import InputError
 from expertise_irl.inference import nuts as nuts_module
 from expertise_irl.inference.continuous import MethodOptions, run_method
 from expertise_irl.inference.gradient import map_estimate
 from expertise_irl.inference.nuts import _laplace_start, nuts_posterior
-from expertise_irl.likelihood import make_log_likelihood, pair_counts, tasks_log_likelihood
+from expertise_irl.inference.task_likelihood import pair_counts, tasks_log_likelihood
+from expertise_irl.planning.differentiable import make_log_likelihood
 from expertise_irl.worlds.zones import load_bundled
 
 THETA = np.array([0.5, 0.3, 0.1, 0.05, 0.05])

@@ -7,8 +7,9 @@ import json
 
 import numpy as np
 import pytest
+from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.demos import simulate, validate
+from expertise_irl.demos.trajectories import validate
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
@@ -187,7 +188,7 @@ def test_feed_keeps_labels_and_leaves_a_cut_episode_open(setup):
     cut = trajs.first(2)
     keep = np.ones(len(cut), dtype=bool)
     keep[-3:] = False  # the second episode loses its last three actions
-    from expertise_irl.demos import Trajectories
+    from expertise_irl.demos.trajectories import Trajectories
 
     part = Trajectories(cut.episode[keep] + 5, cut.step[keep], cut.state[keep], cut.action[keep])
     on = fresh(setup)

@@ -12,7 +12,7 @@ from expertise_irl.errors import InputError
 from expertise_irl.experiments import load
 from expertise_irl.experiments.engine import run
 from expertise_irl.experiments.studies import get_study
-from expertise_irl.experiments.studies.conditions import FEATURES, environment
+from expertise_irl.experiments.studies.fixed_vs_joint import FEATURES, environment
 from expertise_irl.experiments.studies.optimisation import METHODS, SCALES, OptimisationConfig, instance
 
 STUDY = get_study("optimisation")

@@ -13,13 +13,9 @@ from scipy.optimize import brentq
 
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.planning import (
-    ConvergenceError,
-    log_likelihood,
-    pair_log_likelihoods,
-    solve,
-)
-from expertise_irl.solver import CHECK_EVERY
+from expertise_irl.planning.kernels import CHECK_EVERY
+from expertise_irl.planning.soft_vi import ConvergenceError, solve
+from expertise_irl.planning.table_likelihood import log_likelihood, pair_log_likelihoods
 from expertise_irl.worlds.zones import parse_map
 
 BETAS = np.array([1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0])
@@ -469,7 +465,7 @@ def test_float32_start_meets_the_same_guarantee():
     """A set large enough for the float32 first phase: every hypothesis is within the
     tolerance of the extended-precision reference, as a cold float64 solve is (the float64
     phase stops on the same contraction bound from any start)."""
-    from expertise_irl.planning import FLOAT32_START_MIN
+    from expertise_irl.planning.soft_vi import FLOAT32_START_MIN
 
     rng = np.random.default_rng(5)
     mdp = random_mdp(rng, 12, 4, 3, 0.95)
@@ -491,7 +487,7 @@ def test_float32_start_falls_back_where_float32_overflows():
     """Weights θ/β beyond float32's range (β = 1e-39): the float32 phase cannot converge, so a
     cold float64 solve decides, and the result is a cold float64 solve's."""
     from expertise_irl.errors import ConvergenceError
-    from expertise_irl.planning import FLOAT32_START_MIN
+    from expertise_irl.planning.soft_vi import FLOAT32_START_MIN
 
     rng = np.random.default_rng(6)
     mdp = random_mdp(rng, 10, 3, 2, 0.9)

@@ -12,14 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from expertise_irl.demos.csv_io import read_demos_csv
 from typer.testing import CliRunner
 
 from expertise_irl.cli import app
-from expertise_irl.demos import Trajectories, read_demos_csv
+from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import HypothesisSet, expertise_group
 from expertise_irl.inference.belief import TRACE_GROUPS, DiscreteBelief
-from expertise_irl.worlds import result_plots as rp
+from expertise_irl.plots import results as rp
 from expertise_irl.worlds.zones import load_bundled
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -385,12 +386,12 @@ def test_a_floor_plan_is_drawn_as_a_floor_plan():
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from expertise_irl.demos.simulation import simulate
     from matplotlib.colors import to_hex
 
-    from expertise_irl.demos import simulate
-    from expertise_irl.worlds import render
+    from expertise_irl.plots import maps as render
+    from expertise_irl.plots.floorplan import ROAD_COLOR
     from expertise_irl.worlds.warehouse import parse_floor_plan
-    from expertise_irl.worlds.warehouse_render import ROAD_COLOR
 
     plan = parse_floor_plan("S>>>v\n..xxv\n....G\n")
     mdp = plan.to_mdp()

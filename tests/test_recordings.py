@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke
+from expertise_irl.demos.csv_io import read_demos_csv
 
-from expertise_irl.demos import read_demos_csv
+from expertise_irl.demos.recordings import discretise, read_recording, shortest_free_path
 from expertise_irl.errors import InputError
-from expertise_irl.recordings import discretise, read_recording, shortest_free_path
 from expertise_irl.worlds.maps import resolve_world
 from expertise_irl.worlds.warehouse import parse_floor_plan
 
@@ -287,7 +287,7 @@ def test_a_missing_recording_and_a_zone_map_are_refused(tmp_path, plan_file):
 
 
 def test_the_figure_puts_samples_where_they_were_recorded_and_cells_at_their_centres(tmp_path):
-    from expertise_irl.worlds.warehouse_render import discretised_figure
+    from expertise_irl.plots.floorplan import discretised_figure
 
     plan = parse_floor_plan(PLAN_TEXT, cell_size=0.5, y_up=True)
     rows = ["0,0,0.25,1.75", "0,1,0.3,1.2", "0,2,0.3,0.7", "0,3,1.4,0.7", "0,4,3.4,0.7"]  # gaps, off map

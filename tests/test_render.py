@@ -12,9 +12,9 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from expertise_irl.demos import Trajectories
+from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
-from expertise_irl.worlds import render
+from expertise_irl.plots import maps as render
 from expertise_irl.worlds.zones import FEATURE_NAMES, load_bundled, parse_map
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -22,7 +22,7 @@ from scipy import stats
 
 from expertise_irl.experiments.report import build_report, read_sweep
 from expertise_irl.experiments.report import claims as C
-from expertise_irl.experiments.report import conditions as cond_report
+from expertise_irl.experiments.report import fixed_vs_joint as cond_report
 from expertise_irl.experiments.report.output import MARKER
 from expertise_irl.experiments.report.stats import METRICS, fmt, fmt_p, ratio_ci
 from expertise_irl.experiments.report.tables import (

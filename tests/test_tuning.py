@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke, ok
 
-from expertise_irl import tuning
 from expertise_irl.errors import InputError
-from expertise_irl.planning import solve
+from expertise_irl.planning import tuning
+from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.maps import resolve_world
 
 
@@ -164,7 +164,7 @@ def test_a_command_says_why_it_pauses_on_first_use(fresh, monkeypatch, tmp_path)
 
 
 def test_small_sets_do_not_pause_to_measure(fresh, monkeypatch):
-    from expertise_irl.planning import TUNE_MIN
+    from expertise_irl.planning.soft_vi import TUNE_MIN
 
     monkeypatch.setattr(tuning, "_measure", lambda dtype: pytest.fail("measured for a small set"))
     mdp = resolve_world("corridor").to_mdp()

@@ -6,15 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke
+from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
+from expertise_irl.demos.simulation import simulate
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
-from expertise_irl.demos import read_demos_csv, simulate, write_demos_csv
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.worlds import warehouse_render
+from expertise_irl.plots import floorplan as warehouse_render
+from expertise_irl.plots.maps import ROAD_ARROWS_GID
 from expertise_irl.worlds.maps import resolve_world
-from expertise_irl.worlds.render import ROAD_ARROWS_GID
 from expertise_irl.worlds.warehouse import (
     FEATURE_NAMES,
     WarehouseMap,

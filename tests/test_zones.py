@@ -8,9 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from expertise_irl.errors import InputError
-from expertise_irl.mdp import DEFAULT_GAMMA
+from expertise_irl.mdp import ACTION_NAMES, DEFAULT_GAMMA
 from expertise_irl.worlds.zones import (
-    ACTION_NAMES,
     DEFAULT_GOAL_BONUS,
     FEATURE_NAMES,
     LEGEND,

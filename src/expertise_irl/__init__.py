@@ -19,8 +19,8 @@ del version, PackageNotFoundError
 
 #: public name -> module that defines it (relative to this package)
 _EXPORTS = {
-    "Trajectories": ".demos", "read_demos_csv": ".demos", "simulate": ".demos",
-    "write_demos_csv": ".demos",
+    "Trajectories": ".demos.trajectories", "read_demos_csv": ".demos.csv_io",
+    "simulate": ".demos.simulation", "write_demos_csv": ".demos.csv_io",
     "ConvergenceError": ".errors", "InputError": ".errors",
     "BETA_PRESETS": ".hypotheses", "THETA_PRESETS": ".hypotheses", "HypothesisSet": ".hypotheses",
     "expertise_group": ".hypotheses", "theta_grid": ".hypotheses",
@@ -32,7 +32,7 @@ _EXPORTS = {
     "nuts_posterior": ".inference.nuts", "NUTSResult": ".inference.nuts",
     "TabularMDP": ".mdp",
     "cosine_similarity": ".metrics", "expertise_distance": ".metrics", "policy_regret": ".metrics",
-    "SoftSolution": ".planning", "solve": ".planning",
+    "SoftSolution": ".planning.soft_vi", "solve": ".planning.soft_vi",
     "ZoneMap": ".worlds.zones", "generate_map": ".worlds.zones", "load_bundled": ".worlds.zones",
     "load_map": ".worlds.zones", "parse_map": ".worlds.zones",
 }
@@ -89,7 +89,9 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
-    from .demos import Trajectories, read_demos_csv, simulate, write_demos_csv
+    from .demos.csv_io import read_demos_csv, write_demos_csv
+    from .demos.simulation import simulate
+    from .demos.trajectories import Trajectories
     from .errors import ConvergenceError, InputError
     from .hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, expertise_group, theta_grid
     from .inference.active import next_start
@@ -102,5 +104,5 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .mdp import TabularMDP
     from .metrics import cosine_similarity, expertise_distance, policy_regret
     from .models import MODELS
-    from .planning import SoftSolution, solve
+    from .planning.soft_vi import SoftSolution, solve
     from .worlds.zones import ZoneMap, generate_map, load_bundled, load_map, parse_map

@@ -12,7 +12,7 @@ draws the map in the renderer's colours, the goal, the path of the current
 episode and the agent.
 
 :class:`RecordTrajectories` keeps every accepted ``(state, action)`` pair, one
-episode per ``reset``, and returns them as :class:`~expertise_irl.demos.Trajectories`
+episode per ``reset``, and returns them as :class:`~expertise_irl.demos.trajectories.Trajectories`
 (or writes the demonstration CSV), so data collected with Gymnasium tools feeds
 every inference of this library::
 
@@ -34,10 +34,11 @@ import numpy as np
 from gymnasium import spaces
 from matplotlib.colors import to_rgb
 
-from .demos import Trajectories, write_demos_csv
+from .demos.csv_io import write_demos_csv
+from .demos.trajectories import Trajectories
 from .errors import InputError
 from .mdp import TabularMDP
-from .worlds.render import ARROW_COLOR, GOAL_COLOR, GRID_COLOR, PATH_COLORS, ROAD_VECTORS, ZONE_COLORS
+from .plots.maps import ARROW_COLOR, GOAL_COLOR, GRID_COLOR, PATH_COLORS, ROAD_VECTORS, ZONE_COLORS
 from .worlds.zones import ZoneMap, resolve_map
 
 ENV_ID = "expertise_irl/ZoneWorld-v0"

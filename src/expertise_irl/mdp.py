@@ -23,6 +23,10 @@ import numpy as np
 from .errors import InputError
 
 DEFAULT_GAMMA = 0.95
+#: The four moves of the grid worlds (zones and floor plans), in action-index order.
+ACTION_NAMES = ("up", "down", "left", "right")
+#: (dx, dy) of each move; y grows downwards.
+ACTION_DELTAS = np.array([(0, -1), (0, 1), (-1, 0), (1, 0)], dtype=np.int64)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import InputError
 from .mdp import TabularMDP
-from .planning import solve
+from .planning.soft_vi import solve
 
 
 def expertise_distance(beta_true: float, beta_hat: float) -> float:

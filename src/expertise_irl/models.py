@@ -1,8 +1,8 @@
 """Observation models: how a person with preferences θ and expertise β picks actions.
 
 Each model is one Bellman backup in scaled units (``w = θ/β``, ``q = w·φ + γ v[next]``,
-``V = β v``); the batched solver (:mod:`expertise_irl.solver`), the differentiable
-likelihood (:mod:`expertise_irl.likelihood`) and the simulator all call
+``V = β v``); the batched solver (:mod:`expertise_irl.planning.kernels`), the differentiable
+likelihood (:mod:`expertise_irl.planning.differentiable`) and the simulator all call
 :func:`backup`, so a new model is one branch here.
 
 - ``maxent`` (the paper's, Eqs. 1, 5–7; the default): ``v = logsumexp_a q`` and

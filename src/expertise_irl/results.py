@@ -1,4 +1,4 @@
-"""Result documents (JSON) and safe output files.
+"""Result documents (JSON), written and read here, and safe output files.
 
 A discrete-set result holds ``beta_hat``, ``theta_hat``, the MAP hypothesis, the
 marginals, every hypothesis with its ``log_likelihood``, ``log_posterior`` and
@@ -14,8 +14,9 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +24,9 @@ from . import __version__
 from .errors import InputError
 from .hypotheses import expertise_group
 from .inference.belief import DiscreteBelief, Trace
+
+if TYPE_CHECKING:
+    from .mdp import TabularMDP
 
 
 def _num(x: float) -> float | None:
@@ -223,3 +227,135 @@ def continuous_result(method_out: dict[str, Any], *, method: str, feature_names,
                     w.writerow([int(c), int(d), repr(float(b)), *(repr(float(x)) for x in t)])
             doc["samples"] = str(samples_path)
     return doc
+
+
+# ----------------------------------------------------------------------- reading
+#: The methods a result can come from, and those whose result holds posterior draws.
+METHODS = ("discrete", "birl", "map", "nuts")
+SAMPLED = ("birl", "nuts")
+
+
+def is_number(x) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def load_result(path: str | Path) -> dict[str, Any]:
+    """Read and check a result JSON written by ``infer`` or ``demo``.
+
+    Raises :class:`InputError` naming ``path`` if it is not JSON or not a result.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a result JSON (not UTF-8 text)") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not a result JSON (line {exc.lineno}: {exc.msg})") from None
+    check_result(doc, path)
+    return doc
+
+
+def check_result(doc, path: str | Path) -> None:
+    """Raise :class:`InputError` naming ``path`` unless ``doc`` is a result document."""
+    if not isinstance(doc, dict) or "method" not in doc:
+        raise InputError(f"{path}: not an expertise-irl result (no 'method'; write one with "
+                         "`expertise-irl infer`)")
+    method = doc["method"]
+    if method not in METHODS:
+        raise InputError(f"{path}: unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    names = doc.get("feature_names")
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise InputError(f"{path}: 'feature_names' must be a non-empty list of names")
+    K = len(names)
+    if not is_number(doc.get("beta_hat")):
+        raise InputError(f"{path}: 'beta_hat' must be a finite number")
+    th = doc.get("theta_hat")
+    if not isinstance(th, list) or len(th) != K or not all(is_number(v) for v in th):
+        raise InputError(f"{path}: 'theta_hat' must be {K} finite numbers (one per feature)")
+    if method == "discrete":
+        _check_marginals(doc, path, K)
+        trace = doc.get("trace")
+        if trace is not None and (not isinstance(trace, list) or not trace or not all(
+                isinstance(e, dict) and is_number(e.get("beta_hat")) and is_number(e.get("entropy"))
+                for e in trace)):
+            raise InputError(f"{path}: 'trace' must be a list of entries with beta_hat and entropy")
+    elif method in SAMPLED and "samples" not in doc:
+        raise InputError(f"{path}: a {method} result needs 'samples'")
+
+
+def _check_marginals(doc, path, K: int) -> None:
+    m = doc.get("marginals")
+    try:
+        b, t = m["beta"], m["theta"]
+        bv, bp = np.asarray(b["values"], dtype=float), np.asarray(b["probabilities"], dtype=float)
+        tv, tp = np.asarray(t["values"], dtype=float), np.asarray(t["probabilities"], dtype=float)
+    except (TypeError, KeyError, ValueError):
+        raise InputError(f"{path}: a discrete result needs 'marginals' of beta and theta "
+                         "(values and probabilities)") from None
+    if bv.ndim != 1 or bv.shape != bp.shape or bv.size == 0:
+        raise InputError(f"{path}: marginals.beta: values and probabilities must be equal-length lists")
+    if tv.ndim != 2 or tv.shape[1] != K or tp.shape != (tv.shape[0],):
+        raise InputError(f"{path}: marginals.theta: expected [n, {K}] values and n probabilities")
+    for what, p in (("beta", bp), ("theta", tp)):
+        if not np.all(np.isfinite(p)) or (p < 0).any() or p.sum() <= 0:
+            raise InputError(f"{path}: marginals.{what}: probabilities must be finite, >= 0, not all 0")
+
+
+def load_samples(doc: dict[str, Any], path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(chain [n], beta [n], theta [n, K])`` of a sampling result.
+
+    ``samples`` is inline (``{"chain", "beta", "theta"}``) or the path of a CSV
+    ``chain,draw,beta,<feature names>``; a relative path not found as given is looked up
+    in the folder of the result ``path``.
+    """
+    path = Path(path)
+    names = doc["feature_names"]
+    K = len(names)
+    s = doc["samples"]
+    if isinstance(s, dict):
+        try:
+            chain = np.asarray(s["chain"], dtype=np.int64)
+            beta = np.asarray(s["beta"], dtype=float)
+            theta = np.asarray(s["theta"], dtype=float).reshape(len(beta), K)
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{path}: 'samples' must hold chain, beta and theta ({K} per draw) "
+                             "of equal length") from None
+    elif isinstance(s, str):
+        csv_path = Path(s)
+        if not csv_path.is_file() and not csv_path.is_absolute():
+            csv_path = path.parent / csv_path
+        if not csv_path.is_file() and (path.parent / Path(s).name).is_file():
+            csv_path = path.parent / Path(s).name
+        if not csv_path.is_file():
+            raise InputError(f"{path}: its samples file {s} is not found (looked beside the result too)")
+        chain, beta, theta = _read_samples_csv(csv_path, names)
+    else:
+        raise InputError(f"{path}: 'samples' must be an object or the path of a CSV")
+    if chain.shape != beta.shape or len(beta) == 0:
+        raise InputError(f"{path}: 'samples' must hold at least one draw, chain and beta of equal length")
+    if not (np.all(np.isfinite(beta)) and np.all(np.isfinite(theta))):
+        raise InputError(f"{path}: 'samples' hold non-finite values")
+    return chain, beta, theta
+
+
+def _read_samples_csv(path: Path, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    with open(path, encoding="utf-8", newline="") as fh:
+        rows = list(csv.reader(fh))
+    want = ["chain", "draw", "beta", *names]
+    if not rows or rows[0] != want:
+        raise InputError(f"{path}:1: expected the header {','.join(want)}")
+    try:
+        data = np.array([[float(v) for v in r] for r in rows[1:] if r], dtype=float)
+    except ValueError:
+        raise InputError(f"{path}: every value after the header must be a number") from None
+    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(want):
+        raise InputError(f"{path}: expected at least one row of {len(want)} numbers")
+    return data[:, 0].astype(np.int64), data[:, 2], data[:, 3:]
+
+
+def check_features(doc: dict[str, Any], result_path, mdp: TabularMDP, mdp_label) -> None:
+    """The map's features must be the result's ``feature_names``, in order."""
+    have, want = list(mdp.feature_names), list(doc["feature_names"])
+    if have != want:
+        raise InputError(f"{mdp_label}: its features ({', '.join(have)}) do not match the "
+                         f"feature_names of {result_path} ({', '.join(want)})")

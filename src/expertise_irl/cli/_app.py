@@ -79,8 +79,8 @@ def prepare_solver(*, measure: bool = True) -> None:
     """Before a command solves: JAX's persistent cache on and, with ``measure``, on a machine's
     first use the solver's lane width measured, with a note on stderr saying why there is a
     pause (commands whose solves run elsewhere or on one hypothesis pass ``measure=False``)."""
-    from ..jax_cache import enable_jax_cache
-    from ..tuning import is_settled, lane_choice
+    from ..planning.jax_cache import enable_jax_cache
+    from ..planning.tuning import is_settled, lane_choice
 
     enable_jax_cache()
     if measure and not is_settled("float64"):
@@ -160,7 +160,7 @@ def _check_model(model: str) -> str:
 
 def _report_capped(trajs, mdp, max_steps: int, model: str) -> int:
     """Say how many episodes ran to the step cap; warn when most did, and why."""
-    from ..demos import capped_episodes
+    from ..demos.simulation import capped_episodes
 
     n, total = capped_episodes(trajs, mdp, max_steps), trajs.n_episodes
     if n:

@@ -52,8 +52,8 @@ def demo(
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
     from ..experiments.demo import demo_outputs, run_demo
+    from ..plots.maps import render_demo_png
     from ..results import check_writable, discrete_result, write_json
-    from ..worlds.render import render_demo_png
     from ..worlds.zones import resolve_map
 
     _check_model(model)
@@ -145,8 +145,8 @@ def simulate(
     The person acts by --model (default maxent, the paper's). Episodes that run to --max-steps
     without reaching a goal are counted on stderr.
     """
-    from ..demos import simulate as simulate_episodes
-    from ..demos import write_demos_csv
+    from ..demos.csv_io import write_demos_csv
+    from ..demos.simulation import simulate as simulate_episodes
     from ..results import check_writable
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), mdp_path])
@@ -213,7 +213,7 @@ def infer(
     every method reproducible. Convergence warnings go to stderr and to the result's
     diagnostics.warnings.
     """
-    from ..demos import read_demos_csv
+    from ..demos.csv_io import read_demos_csv
     from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
     from ..hypotheses import sample_thetas as sample
     from ..inference.belief import DiscreteBelief
@@ -354,12 +354,12 @@ def render(
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Draw a map (and optionally demonstrations) as a PNG in the style of the paper's Fig. 1."""
-    from ..demos import read_demos_csv
+    from ..demos.csv_io import read_demos_csv
+    from ..plots.floorplan import render_floor_plan_png
+    from ..plots.maps import paths_to_xy, render_map_png
     from ..results import check_writable
     from ..worlds.maps import resolve_world
-    from ..worlds.render import paths_to_xy, render_map_png
     from ..worlds.warehouse import WarehouseMap
-    from ..worlds.warehouse_render import render_floor_plan_png
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), demos])
     _check_figure_format(out_path)

@@ -128,7 +128,7 @@ def next_start_cmd(
     episode from it, estimated by simulating episodes under hypotheses drawn from the
     posterior given --demos.
     """
-    from ..demos import read_demos_csv
+    from ..demos.csv_io import read_demos_csv
     from ..inference.active import TARGETS, expected_information_gain
     from ..inference.belief import DiscreteBelief
 

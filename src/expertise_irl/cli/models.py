@@ -49,7 +49,7 @@ def compare_models_command(
     last episodes predicted from the posterior of the first ones.
     """
     from .. import __version__
-    from ..demos import read_demos_csv
+    from ..demos.csv_io import read_demos_csv
     from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
     from ..inference.evidence import compare_models
     from ..results import check_writable, file_digest, write_json

@@ -27,8 +27,8 @@ def plot(
 
     Discrete results show the marginal probabilities as bars; birl and nuts show histograms of the draws with the 90% credible interval; map shows its point estimate.
     """  # noqa: E501  (one line per paragraph: the help text wraps it)
-    from ..results import check_writable
-    from ..worlds.result_plots import check_features, load_result, render_result_png
+    from ..plots.results import render_result_png
+    from ..results import check_features, check_writable, load_result
 
     inputs = [p for p in (result, mdp_path, demos) if p is not None]
     if map_spec is not None and Path(map_spec).exists():
@@ -50,7 +50,7 @@ def plot(
             raise InputError(f"{mdp_path}: the MDP has no grid coordinates (state_xy), so it cannot "
                              "be drawn; plot without --mdp/--demos")
         if demos is not None:
-            from ..demos import read_demos_csv
+            from ..demos.csv_io import read_demos_csv
 
             trajs = read_demos_csv(demos, mdp)
     render_result_png(out_path, doc, source=result, mdp=mdp, zone_map=zone_map, trajs=trajs)

@@ -60,10 +60,10 @@ def discretise(
     samples off the free cells stop with an error unless --fill-gaps / --snap; what they
     changed is counted and printed.
     """
-    from ..demos import write_demos_csv
-    from ..recordings import discretise_recording
+    from ..demos.csv_io import write_demos_csv
+    from ..demos.recordings import discretise_recording
+    from ..plots.floorplan import render_discretised_png
     from ..results import check_writable
-    from ..worlds.warehouse_render import render_discretised_png
     from .core import _check_figure_format
 
     png = png if png is not None else out_path.with_suffix(".png")
@@ -125,7 +125,7 @@ def simulate_recordings_cmd(
     """
     import numpy as np
 
-    from ..demos import write_demos_csv
+    from ..demos.csv_io import write_demos_csv
     from ..results import check_writable
     from ..userstudy.simulated_recordings import RobotMotion, simulate_recordings, write_recording
     from ._app import _check_beta, _check_model, _parse_theta, _report_capped

@@ -32,7 +32,7 @@ def tune(
     It is measured at first use (a few seconds) and cached per machine and JAX version;
     EXPERTISE_IRL_LANES=N overrides it.
     """
-    from ..tuning import LANES_ENV, lane_choice, machine_key, tuning_file
+    from ..planning.tuning import LANES_ENV, lane_choice, machine_key, tuning_file
 
     if dtype not in ("float64", "float32"):
         raise InputError(f"--dtype must be float64 or float32, got {dtype!r}")

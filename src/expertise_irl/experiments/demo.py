@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from ..demos import DEFAULT_MAX_STEPS, Trajectories, simulate
+from ..demos.simulation import DEFAULT_MAX_STEPS, simulate
+from ..demos.trajectories import Trajectories
 from ..hypotheses import (
     BETA_PRESETS,
     THETA_PRESETS,

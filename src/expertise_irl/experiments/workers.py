@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InputError
-from ..jax_cache import JAX_CACHE_ENV, enable_jax_cache  # noqa: F401  (JAX_CACHE_ENV: public here too)
+from ..planning.jax_cache import JAX_CACHE_ENV, enable_jax_cache  # noqa: F401  (JAX_CACHE_ENV: public here too)
 
 if TYPE_CHECKING:
     from .engine import TaskSpec

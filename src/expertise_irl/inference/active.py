@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..demos import check_start_states
+from ..demos.simulation import check_start_states
 from ..errors import InputError
 from ..mdp import TabularMDP
 from .belief import DiscreteBelief

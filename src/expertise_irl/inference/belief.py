@@ -19,12 +19,13 @@ from typing import NamedTuple
 import numpy as np
 from scipy.special import logsumexp
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP
-from ..planning import check_pairs, pair_log_likelihoods, solve
-from ..planning import log_likelihood as total_log_likelihood
+from ..planning.soft_vi import solve
+from ..planning.table_likelihood import check_pairs, pair_log_likelihoods
+from ..planning.table_likelihood import log_likelihood as total_log_likelihood
 
 
 class Trace(NamedTuple):
@@ -83,7 +84,7 @@ class DiscreteBelief:
 
     Attributes:
         hypotheses: the set Ψ = Θ × B, H = len(hypotheses).
-        log_policy: ``[H, S, A]`` log π_h(a|s) from :func:`~expertise_irl.planning.solve`.
+        log_policy: ``[H, S, A]`` log π_h(a|s) from :func:`~expertise_irl.planning.soft_vi.solve`.
         log_prior: ``[H]`` normalised log prior.
         log_likelihood: ``[H]`` accumulated log P(Ξ | h) of everything observed.
         n_observed: number of (state, action) pairs observed so far.
@@ -107,7 +108,7 @@ class DiscreteBelief:
     ) -> DiscreteBelief:
         """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
 
-        ``solve_kwargs`` go to :func:`~expertise_irl.planning.solve` (tol, chunk_size, progress,
+        ``solve_kwargs`` go to :func:`~expertise_irl.planning.soft_vi.solve` (tol, chunk_size, progress,
         model...).
         """
         if hypotheses.thetas.shape[1] != mdp.n_features:

@@ -51,7 +51,7 @@ stay on the simplex, and each costs likelihood (measured on ``corridor`` at β �
 7.5 nats, while a β step gains about 2.4), so the chain can lower β only through pairs
 of unlikely moves; from a random start it stayed at the vertex for 3,000 iterations.
 
-Likelihood. Eq. 11 by soft value iteration (:func:`expertise_irl.planning.solve`; its
+Likelihood. Eq. 11 by soft value iteration (:func:`expertise_irl.planning.soft_vi.solve`; its
 fixed point is the one soft policy evaluation/iteration of the paper's [28] reaches)
 for the single proposed hypothesis, warm-started from the value function of the
 current point (``warm_start``). The solver works in scaled units v = V/β; we hand it
@@ -100,11 +100,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..demos import Trajectories, validate
+from ..demos.trajectories import Trajectories, validate
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
-from ..planning import solve
+from ..planning.soft_vi import solve
 from .priors import DEFAULT_PRIOR, get_prior, log_prior_numpy
 
 VARIANTS = ("box", "simplex")

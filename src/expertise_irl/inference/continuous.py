@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
@@ -77,7 +77,7 @@ def run_method(method: str, mdp: TabularMDP | Sequence[TabularMDP],
     (statistic -> why it could not be computed). ``progress(done, total)`` follows
     Algorithm 1's iterations, MAP's starts and NUTS's iterations (warm-up included).
     """
-    from ..likelihood import as_tasks  # imports JAX: not at module level (the CLI's --help)
+    from .task_likelihood import as_tasks  # imports JAX: not at module level (the CLI's --help)
 
     opts.validate()
     t0 = time.perf_counter()

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP

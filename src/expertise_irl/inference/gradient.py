@@ -3,7 +3,7 @@
 The parameters are θ on the unit simplex (‖θ‖₁ = 1 fixes the scale: (θ, β) and (cθ, cβ)
 behave alike) and β > 0. Both optimisers work on unconstrained coordinates,
 θ = softmax(z) and β = exp(b), with the log-density and its exact gradient from
-:func:`expertise_irl.likelihood.make_log_likelihood`.
+:func:`expertise_irl.planning.differentiable.make_log_likelihood`.
 
 Priors by name (:mod:`expertise_irl.inference.priors`): ``log-uniform`` (the default: θ
 uniform on the simplex, log β uniform on [1e-3, 1e2]) or ``paper`` (Sec. VII-A: β ~
@@ -22,12 +22,12 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import minimize
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..likelihood import as_tasks, tasks_log_likelihood
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, DEFAULT_PRIOR, get_prior, log_prior_jax
+from .task_likelihood import as_tasks, tasks_log_likelihood
 
 __all__ = ["BETA_PRIOR_MEAN", "BETA_PRIOR_SD", "MAPResult", "credible_intervals", "map_estimate",
            "paper_log_prior"]

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet
 from ..mdp import TabularMDP
@@ -60,7 +60,7 @@ class MultiTaskBelief:
 
         ``tasks`` is a list of ``(mdp, trajectories)`` pairs (trajectories may be ``None``:
         nothing observed there yet). The MDPs must have the same features, in order.
-        ``solve_kwargs`` go to :func:`~expertise_irl.planning.solve`.
+        ``solve_kwargs`` go to :func:`~expertise_irl.planning.soft_vi.solve`.
         """
         if not tasks:
             raise InputError("a multi-task belief needs at least one task")

@@ -16,7 +16,7 @@ measured in ``benchmarks/nuts_speed.py``:
   compile serves every data set on a map, and with JAX's persistent cache (the command line
   turns it on) later runs do not compile again.
 - **Warm starts** (opt-in, ``warm_start=True``): each iteration's potential carries a
-  :class:`~expertise_irl.likelihood.WarmStart`, the converged values and gradient adjoint at
+  :class:`~expertise_irl.planning.differentiable.WarmStart`, the converged values and gradient adjoint at
   the chain's last draw, and every leapfrog step of the next trajectory starts its forward
   and adjoint fixed points there. NumPyro's potential is a pure function of the position,
   so the start is the trajectory's origin, not the previous leapfrog step. A solve's result
@@ -35,14 +35,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..likelihood import as_tasks, tasks_log_likelihood
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from .diagnostics import chain_statistics
 from .gradient import credible_intervals
 from .priors import DEFAULT_PRIOR, numpyro_priors
+from .task_likelihood import as_tasks, tasks_log_likelihood
 
 __all__ = ["NUTSResult", "nuts_posterior"]
 

@@ -11,7 +11,7 @@ pairs, after every action.
 The estimator also keeps the observed pairs, so it knows the episodes:
 an episode ends on entering a terminal state or when :meth:`OnlineEstimator.end_episode`
 is called, and within an episode each state must follow from the previous pair
-(the rules of :func:`~expertise_irl.demos.validate`). :meth:`~OnlineEstimator.undo`
+(the rules of :func:`~expertise_irl.demos.trajectories.validate`). :meth:`~OnlineEstimator.undo`
 takes back the last action; :meth:`~OnlineEstimator.snapshot` and
 :meth:`~OnlineEstimator.restore` save and restore the whole state.
 """
@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..demos import Trajectories
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP
@@ -140,7 +140,7 @@ class OnlineSnapshot:
 
 
 def _solve(mdp: TabularMDP, hypotheses: HypothesisSet, progress, solve_kwargs) -> np.ndarray:
-    from ..planning import solve
+    from ..planning.soft_vi import solve
 
     if progress is True:
         from rich.console import Console
@@ -216,7 +216,7 @@ class OnlineEstimator:
         """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
 
         ``progress`` is ``progress(done, total)``, called as batches of hypotheses finish, or
-        True for a progress bar on stderr; other keywords go to :func:`~expertise_irl.planning.solve`.
+        True for a progress bar on stderr; other keywords go to :func:`~expertise_irl.planning.soft_vi.solve`.
         ``OnlineEstimator(mdp, hypotheses, progress=...)`` does the same.
         """
         return cls(mdp, hypotheses, None, prior=prior, progress=progress, **solve_kwargs)
@@ -368,7 +368,7 @@ class OnlineEstimator:
         return DiscreteBelief(self.hypotheses, lp, self._log_prior, self._ll.copy(), len(self._pairs))
 
     def trajectories(self) -> Trajectories:
-        """Everything observed, as :class:`~expertise_irl.demos.Trajectories`."""
+        """Everything observed, as :class:`~expertise_irl.demos.trajectories.Trajectories`."""
         if not self._pairs:
             e = np.zeros(0, dtype=np.int64)
             return Trajectories(e, e, e, e)

@@ -26,9 +26,9 @@ from ..errors import InputError
 from ..hypotheses import HypothesisSet
 from ..inference.active import expected_information_gain
 from ..inference.online import OnlineEstimator
+from ..mdp import ACTION_NAMES
 from ..worlds.maps import Map
 from ..worlds.warehouse import HEADING_LETTERS, WarehouseMap
-from ..worlds.zones import ACTION_NAMES
 
 DEMOS_NAME = "demos.csv"
 RESULT_NAME = "result.json"
@@ -212,11 +212,11 @@ class LiveSession:
     # ---------------------------------------------------------------- messages
     def static_message(self) -> dict[str, Any]:
         """The map and its colours (sent once, when a page connects)."""
-        from ..worlds.render import ARROW_COLOR, GOAL_COLOR, GRID_COLOR, PATH_COLORS, ZONE_COLORS
+        from ..plots.maps import ARROW_COLOR, GOAL_COLOR, GRID_COLOR, PATH_COLORS, ZONE_COLORS
 
         floor_plan = isinstance(self.zone_map, WarehouseMap)
         if floor_plan:  # the colours of the floor-plan figures (Figs. 10–11)
-            from ..worlds.warehouse_render import CELL_COLORS, GOAL_FILL, ROAD_COLOR
+            from ..plots.floorplan import CELL_COLORS, GOAL_FILL, ROAD_COLOR
 
             cells, goal, arrow = CELL_COLORS, GOAL_FILL, ROAD_COLOR
         else:
@@ -321,7 +321,7 @@ def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, 
 
 def demos_header(mdp) -> tuple[str, ...]:
     """Columns of the session's ``demos.csv``: the grid form, plus ``heading`` in a heading world."""
-    from ..demos import GRID_COLUMNS, HEADING_COLUMN
+    from ..demos.csv_io import GRID_COLUMNS, HEADING_COLUMN
 
     return GRID_COLUMNS + ((HEADING_COLUMN,) if mdp.state_heading is not None else ())
 
@@ -329,7 +329,7 @@ def demos_header(mdp) -> tuple[str, ...]:
 def check_out_dir(zone_map: Map, out_dir: str | Path, settings: dict[str, Any] | None = None):
     """Check that ``out_dir`` can hold (or resume) a recording on ``zone_map`` before any work is
     done; returns the demonstrations already recorded there (or None)."""
-    from ..demos import read_demos_csv
+    from ..demos.csv_io import read_demos_csv
 
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():

@@ -19,9 +19,10 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..demos import Trajectories, read_demos_csv
+from ..demos.csv_io import read_demos_csv
+from ..demos.recordings import Discretised, discretise_recording
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..recordings import Discretised, discretise_recording
 from ..worlds.warehouse import WarehouseMap, load_floor_plan
 
 REQUIRED = ("participant", "map")

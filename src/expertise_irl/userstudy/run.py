@@ -37,7 +37,6 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..experiments import engine
-from ..experiments.studies.user_study import CONTINUOUS, DISCRETE, OPTIMAL, UserStudyConfig
 from ..results import file_digest, finite_or_null, map_digest, write_json
 from . import evidence as model_evidence
 from .manifest import Manifest, StudyTask, read_manifest
@@ -50,6 +49,7 @@ from .report import (
     task_columns,
     write_csv,
 )
+from .study import CONTINUOUS, DISCRETE, OPTIMAL, UserStudyConfig
 
 STUDY_FILE = "study.json"
 LAYOUT = 1
@@ -334,8 +334,8 @@ def _cells_of(plan, mdp, states, actions) -> np.ndarray:
 def _reports(
     out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names, evidence=None
 ):
+    from ..plots.userstudy import render_participant_png
     from ..results import continuous_result, samples_path_for
-    from .figure import render_participant_png
 
     pdir = out / "participants"
     pdir.mkdir(exist_ok=True)

@@ -1,6 +1,6 @@
 """Cartesian recordings of simulated people (``expertise-irl simulate-recordings``).
 
-A simulated person (:func:`~expertise_irl.demos.simulate`) chooses moves on the floor plan;
+A simulated person (:func:`~expertise_irl.demos.simulation.simulate`) chooses moves on the floor plan;
 a robot then drives that path in continuous space and is sampled like a tele-operated
 robot's odometry:
 
@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..demos import Trajectories, simulate
+from ..demos.simulation import simulate
+from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..worlds.warehouse import WarehouseMap
 

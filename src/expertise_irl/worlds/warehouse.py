@@ -46,17 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..mdp import DEFAULT_GAMMA, TabularMDP
-from .zones import (
-    ACTION_DELTAS,
-    DEFAULT_GOAL_BONUS,
-    FREE,
-    GOAL,
-    OBSTACLE,
-    ROAD_DIRECTIONS,
-    START,
-    read_grid,
-)
+from ..mdp import ACTION_DELTAS, DEFAULT_GAMMA, TabularMDP
+from .zones import DEFAULT_GOAL_BONUS, FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START, read_grid
 
 WORLD = "warehouse"
 HORIZONTAL, VERTICAL = 0, 1

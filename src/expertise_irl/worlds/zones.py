@@ -35,11 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..mdp import DEFAULT_GAMMA, TabularMDP
+from ..mdp import ACTION_DELTAS, DEFAULT_GAMMA, TabularMDP
 
-ACTION_NAMES = ("up", "down", "left", "right")
-#: (dx, dy) of each action; y grows downwards.
-ACTION_DELTAS = np.array([(0, -1), (0, 1), (-1, 0), (1, 0)], dtype=np.int64)
 FEATURE_NAMES = ("length", "road", "avoid", "slow", "traffic")
 DEFAULT_GOAL_BONUS = 10.0
 

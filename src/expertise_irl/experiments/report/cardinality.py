@@ -5,7 +5,7 @@ from __future__ import annotations
 from . import claims as C
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
-from .conditions import PERSON
+from .fixed_vs_joint import PERSON
 from .parts import Figure, Report
 from .stats import METRIC_AXES, METRIC_RANGE, METRICS
 from .sweep import require_columns

@@ -291,7 +291,7 @@ def build(sweep) -> Report:
 def source_caps(config) -> dict[str, int]:
     """Each source study's ``max_steps`` at the sweep's ``source_scale`` (the fullset study rebuilds
     its people from those named scales); empty where the scale is not one of them."""
-    from ..studies import conditions as cond
+    from ..studies import fixed_vs_joint as cond
     from ..studies import optimisation as opt
 
     scale = config.get("source_scale")

@@ -7,11 +7,11 @@ from ...errors import InputError
 
 def studies() -> dict:
     """Study name -> :class:`~expertise_irl.experiments.engine.Study`."""
+    from ...userstudy.study import STUDIES as user_studies
     from .cardinality import STUDY as cardinality
-    from .conditions import STUDY as conditions
+    from .fixed_vs_joint import STUDY as conditions
     from .fullset import STUDY as fullset
     from .optimisation import STUDY as optimisation
-    from .user_study import STUDIES as user_studies
 
     return {s.name: s for s in (conditions, cardinality, optimisation, fullset, *user_studies)}
 

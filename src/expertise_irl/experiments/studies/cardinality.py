@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from .conditions import STUDY as CONDITIONS_STUDY
-from .conditions import ConditionsConfig
+from .fixed_vs_joint import STUDY as CONDITIONS_STUDY
+from .fixed_vs_joint import ConditionsConfig
 
 _BASE = {"environments": 1, "ks": (20, 40, 60, 80, 100), "conditions": ("full",), "low_episodes": 20}
 

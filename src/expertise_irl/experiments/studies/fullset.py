@@ -32,9 +32,9 @@ import numpy as np
 
 from ...errors import InputError
 from ..engine import Column, Study, TaskSpec
-from . import conditions as cond
+from . import fixed_vs_joint as cond
 from . import optimisation as opt
-from .conditions import FEATURES, METRIC_COLUMNS
+from .fixed_vs_joint import FEATURES, METRIC_COLUMNS
 
 SOURCES = ("conditions", "optimisation")
 SETS = ("theta_k", "full")
@@ -148,7 +148,7 @@ def run_task(cfg: FullsetConfig, seed: int, params: dict) -> tuple[dict[str, np.
     """Solve the full set once per map of environment e and score every person on it."""
     from ...hypotheses import BETA_PRESETS, HypothesisSet
     from ...inference.belief import DiscreteBelief
-    from ...planning import solve
+    from ...planning.soft_vi import solve
 
     e = int(params["environment"])
     solved: dict[tuple[int, int], tuple] = {}  # (min, max size) -> (mdp, full, belief, by_pair, time)
@@ -203,7 +203,7 @@ def _episode_log_likelihoods(by_pair: np.ndarray, n_actions: int, trajs) -> np.n
 def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str, np.ndarray]:
     """Rows for every episode count 1..N of one person under one set (one pass), from each
     episode's log-likelihood under every hypothesis of the set (``episode_ll [N, H]``)."""
-    from ...demos import capped_flags
+    from ...demos.simulation import capped_flags
     from ...hypotheses import expertise_group
 
     eps = trajs.episodes()

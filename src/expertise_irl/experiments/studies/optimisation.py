@@ -48,7 +48,7 @@ import numpy as np
 
 from ...errors import InputError
 from ..engine import Column, Study, TaskSpec
-from .conditions import (
+from .fixed_vs_joint import (
     FEATURES,
     METRIC_COLUMNS,
     SET_COMPOSITION,
@@ -61,7 +61,7 @@ from .conditions import (
 )
 
 if TYPE_CHECKING:
-    from ...demos import Trajectories
+    from ...demos.trajectories import Trajectories
 
 METHODS = ("discrete", "birl_box", "birl_simplex", "map", "nuts")
 #: Entropy word that keeps this study's instance seeds apart from ``conditions``' identities.
@@ -153,7 +153,7 @@ class Instance:
 def instance(cfg: OptimisationConfig, seed: int, e: int, i: int) -> Instance:
     """Rebuild instance ``(e, i)`` of sweep ``seed`` (bit for bit)."""
     from ...hypotheses import sample_thetas
-    from ...inference.conditions import out_of_set_truth
+    from ...inference.hypothesis_sets import out_of_set_truth
 
     _, mdp = environment(cfg, seed, e)
     grid = _grid(cfg.thetas, mdp.n_features)
@@ -210,7 +210,7 @@ def _timed(fn):
 
 def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str, np.ndarray], dict]:
     """Every method at every episode count on one instance."""
-    from ...demos import Trajectories
+    from ...demos.trajectories import Trajectories
     from ...hypotheses import BETA_PRESETS, HypothesisSet
     from ...inference.belief import DiscreteBelief
     from ...inference.birl import extended_birl
@@ -285,9 +285,9 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
 
 
 def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndarray]:
-    from ...demos import capped_episodes
+    from ...demos.simulation import capped_episodes
     from ...hypotheses import expertise_group
-    from ...inference.conditions import set_composition
+    from ...inference.hypothesis_sets import set_composition
     from ...inference.priors import get_prior
 
     keys = [(m, n) for m in results for n in cfg.episode_counts]

@@ -38,11 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError, where
+from ..mdp import ACTION_DELTAS
+from ..worlds.warehouse import ACTION_AXIS, HORIZONTAL, VERTICAL, WarehouseMap
+from ..worlds.zones import GOAL
 from .csv_rows import read_rows
-from .demos import Trajectories, validate
-from .errors import InputError, where
-from .worlds.warehouse import ACTION_AXIS, HORIZONTAL, VERTICAL, WarehouseMap
-from .worlds.zones import ACTION_DELTAS, GOAL
+from .trajectories import Trajectories, validate
 
 RECORDING_COLUMNS = ("episode", "t", "x", "y")
 DEFAULT_RATE = 1.0

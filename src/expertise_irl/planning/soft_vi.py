@@ -16,33 +16,27 @@ memory stays bounded; chunks are padded to one shape so JAX compiles once.
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Callable
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import solver as kernel
-from .errors import ConvergenceError, InputError
-from .mdp import TabularMDP
-from .models import DEFAULT_MODEL, check_model
+from ..errors import ConvergenceError, InputError
+from ..mdp import TabularMDP
+from ..models import DEFAULT_MODEL, check_model
+from . import kernels as kernel
 from .tuning import lane_width
-
-jax.config.update("jax_enable_x64", True)
 
 DEFAULT_TOL = 1e-8
 #: With ``float32_start``, sets at least this large are solved in float32 first, then in float64 from there
 #: (smaller ones would pay the float32 kernels' compilation for little gain).
 FLOAT32_START_MIN = 512
 #: Sets at least this large measure the machine's lane width if none is known yet
-#: (:mod:`expertise_irl.tuning`); smaller ones use the default width.
+#: (:mod:`expertise_irl.planning.tuning`); smaller ones use the default width.
 TUNE_MIN = 64
 #: Share of a two-phase solve's time spent in the float32 phase (for progress reports).
 _FLOAT32_SHARE = 0.4
-#: Memory budget for one chunk of hypotheses (bytes of [H, S, A] work arrays).
-DEFAULT_CHUNK_BYTES = 1 * 2**20
 
 
 class SoftSolution(NamedTuple):
@@ -132,32 +126,6 @@ def default_max_iter(mdp: TabularMDP, theta: np.ndarray, beta: np.ndarray, tol: 
     return int(2 * math.ceil(n) + 100)
 
 
-_PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _prepared(mdp: TabularMDP, dtype: str) -> kernel.Prepared:
-    """The MDP in the solver's layout, kept while the (immutable) MDP lives: samplers that
-    solve one hypothesis at a time on the same task pay the set-up once."""
-    per_mdp = _PREPARED.setdefault(mdp, {})
-    if dtype not in per_mdp:
-        per_mdp[dtype] = kernel.prepare(mdp, jnp.float64 if dtype == "float64" else jnp.float32)
-    return per_mdp[dtype]
-
-
-def default_chunk_size(mdp: TabularMDP, dtype=np.float64, budget_bytes: int = DEFAULT_CHUNK_BYTES,
-                       lanes: int = kernel.LANES) -> int:
-    """Hypotheses in flight at once (a multiple of the lane width ``lanes``).
-
-    Sized so the lanes' values (``[S, chunk]``) stay near ``budget_bytes``: 144 on a 30×30
-    map, fewer on large maps, never fewer than 32 hypotheses or more than 256 (rounded down
-    to whole lane groups). Measured on 2 cores with 8 lanes: 128-144 lanes are fastest on
-    883 states, 32 on 4,546 states.
-    """
-    per_hypothesis = mdp.n_states * np.dtype(dtype).itemsize  # rewards are recomputed per sweep
-    n = min(256, max(32, budget_bytes // per_hypothesis))
-    return int(lanes * max(1, n // lanes))
-
-
 def solve(
     mdp: TabularMDP,
     theta,
@@ -177,7 +145,7 @@ def solve(
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
     A pool of ``chunk_size`` lanes sweeps the states in red-black Gauss–Seidel order
-    (:mod:`expertise_irl.solver`); a lane whose hypothesis meets the tolerance hands its
+    (:mod:`expertise_irl.planning.kernels`); a lane whose hypothesis meets the tolerance hands its
     values back and takes the next hypothesis, so no work is spent on finished ones and
     memory stays bounded by the pool, whatever the number of hypotheses. Lanes whose plain
     sweeps contract slowly switch to over-relaxed sweeps (``over_relax``). Results come back
@@ -190,7 +158,7 @@ def solve(
         tol: bound (nats) on the error of each scaled value V/β; log-probabilities are then
             accurate to within 2·tol. Floored at the floating-point resolution of the values.
         max_iter: sweep cap per hypothesis; default from :func:`default_max_iter`.
-        chunk_size: hypotheses in flight at once; default from :func:`default_chunk_size`.
+        chunk_size: hypotheses in flight at once; default from :func:`.kernels.default_chunk_size`.
         dtype: ``"float64"`` (default) or ``"float32"`` (an explicit speed option; values are then
             accurate to about 1e-4 relative, limited by float32 resolution over ~1/(1-γ) backups).
         v_init: optional ``[H, S]`` warm start for V (reward units).
@@ -201,7 +169,7 @@ def solve(
             rescaled for the others; ``v_init`` is then ignored.
         over_relax: let a hypothesis whose Gauss–Seidel sweeps contract at about γ² per sweep
             (a wandering person, large β) switch to successive over-relaxation, and go back to
-            plain sweeps if that does not beat them (:func:`expertise_irl.solver.solve_pool`).
+            plain sweeps if that does not beat them (:func:`expertise_irl.planning.kernels.solve_pool`).
             Convergence is certified by a plain sweep either way, so the guarantee on V/β is the
             same; on the paper's sets it halves the sweeps. ``False`` sweeps plainly throughout.
             Not used for ``boltzmann``, whose hard values it slows (105.8 against 97.9 mean
@@ -215,7 +183,7 @@ def solve(
             over-relaxation a float32 sweep saves too little on a CPU to pay for the second
             phase (docs/performance.md); it may pay where float32 is much faster than float64.
         lanes: hypotheses along the vector axis of one lane group; default: the width chosen
-            for this machine (:func:`expertise_irl.tuning.lane_width`; a set of fewer than
+            for this machine (:func:`expertise_irl.planning.tuning.lane_width`; a set of fewer than
             :data:`TUNE_MIN` hypotheses does not measure one). Results agree within the
             tolerance whatever the width; only the speed depends on it.
 
@@ -271,10 +239,10 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
         raise InputError(f"lanes must be a whole number >= 1, got {lanes!r}")
     lanes = int(lanes)
     if chunk_size is None:
-        chunk_size = default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
+        chunk_size = kernel.default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
     groups = max(1, -(-min(int(chunk_size), H) // lanes))
     slots = groups * lanes
-    prep = _prepared(mdp, dtype)
+    prep = kernel.prepared(mdp, dtype)
     scaled0 = np.zeros((H, prep.n_rows))
     if v_init is not None:
         v_init = np.asarray(v_init, dtype=np.float64)
@@ -323,60 +291,3 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
         if progress is not None:
             progress(min(start + size, H), H)
     return SoftSolution(value, log_pi, iters, beta.copy(), model)
-
-
-def check_pairs(log_policy: np.ndarray, states, actions, *, label=None) -> tuple[np.ndarray, np.ndarray]:
-    """``(states, actions)`` as int64 arrays, checked against a ``[H, S, A]`` table's shape.
-
-    ``label(i)`` names pair ``i`` in the message (default ``"pair i"``); a pair outside the
-    table is an :class:`InputError`, never a read of a neighbouring entry.
-    """
-    states = np.atleast_1d(np.asarray(states, dtype=np.int64))
-    actions = np.atleast_1d(np.asarray(actions, dtype=np.int64))
-    _, S, A = log_policy.shape
-    if states.shape != actions.shape or states.ndim != 1:
-        raise InputError("states and actions must be 1-D arrays of equal length")
-    bad = (states < 0) | (states >= S) | (actions < 0) | (actions >= A)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        at = label(i) if label is not None else f"pair {i}"
-        raise InputError(
-            f"{at}: (state {states[i]}, action {actions[i]}) is outside the MDP "
-            f"({S} states, {A} actions)"
-        )
-    return states, actions
-
-
-def pair_log_likelihoods(log_policy: np.ndarray, states, actions) -> np.ndarray:
-    """``[H, N]`` log π_h(a_n | s_n) for observed pairs (``-inf`` if impossible)."""
-    states = np.asarray(states, dtype=np.int64)
-    actions = np.asarray(actions, dtype=np.int64)
-    return log_policy[:, states, actions]
-
-
-def log_likelihood(log_policy: np.ndarray, states, actions) -> np.ndarray:
-    """``[H]`` log P(Ξ | θ_h, β_h) of Eq. 11: the sum of pair log-likelihoods.
-
-    Each distinct (state, action) pair is read once and weighted by how often it was observed,
-    so the cost is H × (distinct pairs), however long the demonstrations are; the table is
-    read in blocks of rows that stay in cache while their columns are gathered (5× faster
-    than one gather over the whole table at 18,186 hypotheses).
-    """
-    states, actions = check_pairs(log_policy, states, actions)
-    H, S, A = log_policy.shape
-    if len(states) <= _DIRECT_PAIRS:  # a few pairs (one action at a time): gather them directly
-        return pair_log_likelihoods(log_policy, states, actions).sum(axis=1)
-    pairs, counts = np.unique(states * A + actions, return_counts=True)
-    weights = counts.astype(np.float64)
-    table = log_policy.reshape(H, S * A)
-    out = np.empty(H)
-    for h in range(0, H, _ROWS_PER_BLOCK):
-        # counts > 0, so an impossible pair (-inf) makes the sum -inf and never NaN
-        out[h:h + _ROWS_PER_BLOCK] = np.take(table[h:h + _ROWS_PER_BLOCK], pairs, axis=1) @ weights
-    return out
-
-
-#: Hypotheses per block in :func:`log_likelihood` (256 rows of a 30×30 map's table are 7 MB).
-_ROWS_PER_BLOCK = 256
-#: Up to this many pairs, :func:`log_likelihood` gathers them directly (no counting pass).
-_DIRECT_PAIRS = 32

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 
-from .cache import user_cache_dir
+from ..cache import user_cache_dir
 
 JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
 

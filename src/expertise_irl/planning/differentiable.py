@@ -3,7 +3,7 @@
 ``L(θ, β) = Σ_{s,a} N[s, a] log π_{θ,β}(a|s)`` with counts ``N`` of the observed pairs.
 Only ``w = θ/β`` matters; values are solved in scaled units ``v = V/β`` as the fixed point
 of the observation model's backup (:mod:`expertise_irl.models`), with the same red-black
-sweep (:func:`expertise_irl.solver.sweep`, one lane) and the same solver layout as the
+sweep (:func:`expertise_irl.planning.kernels.sweep`, one lane) and the same solver layout as the
 batched solver, so the two cannot disagree.
 
 Gradients come from implicit differentiation of that fixed point (a ``custom_vjp``:
@@ -26,24 +26,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import solver as kernel
-from .demos import Trajectories
-from .errors import InputError
-from .mdp import TabularMDP
-from .models import DEFAULT_MODEL, check_model
-
-jax.config.update("jax_enable_x64", True)
-
-
-def pair_counts(mdp: TabularMDP, trajs: Trajectories) -> np.ndarray:
-    """``[S, A]`` number of times each (state, action) pair was observed."""
-    counts = np.zeros((mdp.n_states, mdp.n_actions))
-    np.add.at(counts, (trajs.state, trajs.action), 1.0)
-    bad = (counts > 0) & ~mdp.available
-    if bad.any():
-        s, a = np.argwhere(bad)[0]
-        raise InputError(f"observed action {a} is not available in {mdp.describe_state(int(s))}")
-    return counts
+from ..errors import InputError
+from ..mdp import TabularMDP
+from ..models import DEFAULT_MODEL, check_model
+from . import kernels as kernel
 
 
 def _iterate(step, x0, gamma, tol, max_iter):
@@ -86,7 +72,7 @@ class WarmStart(NamedTuple):
 def _fixed_point_fn(prep: kernel.Prepared, gamma: float, tol: float, max_iter: int, model: str):
     """``v*(w, v0, lam0)``: the model's fixed point for one hypothesis, with an implicit gradient.
 
-    Forward: red-black sweeps of the batched solver (:func:`expertise_irl.solver.sweep`) on one
+    Forward: red-black sweeps of the batched solver (:func:`expertise_irl.planning.kernels.sweep`) on one
     lane, from ``v0``. Backward: the adjoint ``λ = g + (∂S/∂v)ᵀ λ`` of the same sweep map ``S``
     (it has the same fixed point, so implicit differentiation through it is exact), iterated
     to ``tol`` from ``lam0`` (or from ``g`` when ``lam0`` is None). Returns the fixed point and
@@ -238,34 +224,3 @@ class TaskSum:
 
     def start_at(self, theta, beta, start: tuple | None = None, counts: tuple | None = None) -> tuple:
         return tuple(p.start_at(theta, beta, s, c) for p, s, c in self._each(start, counts))
-
-
-def as_tasks(mdp, trajs) -> list[tuple[TabularMDP, Trajectories]]:
-    """``[(mdp, trajs), ...]`` from one MDP and its trajectories or equal-length lists of both.
-
-    Raises :class:`InputError` when the lists differ in length, are empty, or the MDPs do not
-    share their features (the same θ must mean the same thing on every task).
-    """
-    if isinstance(mdp, TabularMDP) != isinstance(trajs, Trajectories):
-        raise InputError("give one MDP with its trajectories, or a list of each")
-    if isinstance(mdp, TabularMDP):
-        return [(mdp, trajs)]
-    mdps, trajss = list(mdp), list(trajs)
-    if not mdps or len(mdps) != len(trajss):
-        raise InputError(f"need one list of trajectories per MDP, got {len(trajss)} for {len(mdps)} MDPs")
-    names = tuple(mdps[0].feature_names)
-    for i, m in enumerate(mdps[1:], start=2):
-        if tuple(m.feature_names) != names:
-            raise InputError(f"task {i} has features {', '.join(m.feature_names)}, task 1 has "
-                             f"{', '.join(names)}: every task must share the features")
-    return list(zip(mdps, trajss, strict=True))
-
-
-def tasks_log_likelihood(mdp, trajs, *, tol: float = 1e-10, max_iter: int = 200_000,
-                         model: str = DEFAULT_MODEL) -> LogLikelihood | TaskSum:
-    """The log-likelihood of ``trajs`` on ``mdp`` (:class:`LogLikelihood`), or, given lists of
-    MDPs and trajectories (one per task, see :func:`as_tasks`), their sum (:class:`TaskSum`)."""
-    tasks = as_tasks(mdp, trajs)
-    parts = [make_log_likelihood(m, pair_counts(m, t), tol=tol, max_iter=max_iter, model=model)
-             for m, t in tasks]
-    return parts[0] if isinstance(mdp, TabularMDP) else TaskSum(parts)

@@ -24,8 +24,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...errors import InputError
-from ..engine import Column, Study, TaskSpec
+from ..errors import InputError
+from ..experiments.engine import Column, Study, TaskSpec
 
 METHODS = ("discrete", "map", "nuts")
 
@@ -57,7 +57,7 @@ def _data(text: str) -> dict:
 
 @lru_cache(maxsize=16)
 def _plan_mdp(text: str, key: str):
-    from ...worlds.warehouse import parse_floor_plan
+    from ..worlds.warehouse import parse_floor_plan
 
     p = _data(text)["maps"][key]
     plan = parse_floor_plan(
@@ -72,7 +72,7 @@ def _plan_mdp(text: str, key: str):
 
 
 def _hypotheses(cfg: UserStudyConfig, n_features: int):
-    from ...hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
 
     return HypothesisSet(resolve_thetas(cfg.thetas, n_features), resolve_betas(cfg.betas))
 
@@ -97,7 +97,8 @@ def _participant_tasks(cfg: UserStudyConfig) -> list[TaskSpec]:
 # ------------------------------------------------------------------------ discrete
 def run_discrete(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
     """Log-likelihood of every hypothesis for every manifest row on one floor plan."""
-    from ...planning import log_likelihood, solve
+    from ..planning.soft_vi import solve
+    from ..planning.table_likelihood import log_likelihood
 
     key = params["map"]
     _, mdp = _plan_mdp(cfg.data, key)
@@ -134,8 +135,8 @@ def _jsonable(x):
 
 def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
     """MAP or NUTS on all of one participant's tasks (their log-likelihoods summed)."""
-    from ...demos import Trajectories
-    from ...inference.continuous import MethodOptions, run_method
+    from ..demos.trajectories import Trajectories
+    from ..inference.continuous import MethodOptions, run_method
 
     pid = params["participant"]
     mine = [t for t in _data(cfg.data)["tasks"] if t["participant"] == pid]
@@ -170,8 +171,8 @@ def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict,
 # ------------------------------------------------------------------------- optimal
 def run_optimal(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
     """The β = 0.001 path of each participant's θ̂ from each episode's start on one floor plan."""
-    from ...userstudy.paths import OPTIMAL_BETA, greedy_path
-    from .conditions import solve_padded
+    from ..experiments.studies.fixed_vs_joint import solve_padded
+    from .paths import OPTIMAL_BETA, greedy_path
 
     key = params["map"]
     _, mdp = _plan_mdp(cfg.data, key)

@@ -18,8 +18,6 @@ Like :mod:`.render`, figures are built on a :class:`~matplotlib.figure.Figure` d
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,18 +25,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import InputError
-from . import render
+from ..results import SAMPLED, is_number, load_samples
+from . import maps as render
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from ..demos import Trajectories
+    from ..demos.trajectories import Trajectories
     from ..mdp import TabularMDP
-    from .zones import ZoneMap
+    from ..worlds.zones import ZoneMap
 
-METHODS = ("discrete", "birl", "map", "nuts")
-SAMPLED = ("birl", "nuts")
 CREDIBLE = 0.9
 GROUPS = ("high", "medium", "low")
 GROUP_COLORS = {"high": "#2b8a3e", "medium": "#e67700", "low": "#c92a2a"}
@@ -46,133 +42,6 @@ POST_COLOR = "#4c72b0"
 BAND_COLOR = "#a5c0e6"
 POINT_COLOR = "#c0392b"
 BOUNDARY_COLOR = "#868e96"
-
-
-# ----------------------------------------------------------------------- loading
-def _is_num(x) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-
-
-def load_result(path: str | Path) -> dict[str, Any]:
-    """Read and check a result JSON written by ``infer`` or ``demo``.
-
-    Raises :class:`InputError` naming ``path`` if it is not JSON or not a result.
-    """
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a result JSON (not UTF-8 text)") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not a result JSON (line {exc.lineno}: {exc.msg})") from None
-    check_result(doc, path)
-    return doc
-
-
-def check_result(doc, path: str | Path) -> None:
-    """Raise :class:`InputError` naming ``path`` unless ``doc`` is a result document."""
-    if not isinstance(doc, dict) or "method" not in doc:
-        raise InputError(f"{path}: not an expertise-irl result (no 'method'; write one with "
-                         "`expertise-irl infer`)")
-    method = doc["method"]
-    if method not in METHODS:
-        raise InputError(f"{path}: unknown method {method!r} (expected one of {', '.join(METHODS)})")
-    names = doc.get("feature_names")
-    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-        raise InputError(f"{path}: 'feature_names' must be a non-empty list of names")
-    K = len(names)
-    if not _is_num(doc.get("beta_hat")):
-        raise InputError(f"{path}: 'beta_hat' must be a finite number")
-    th = doc.get("theta_hat")
-    if not isinstance(th, list) or len(th) != K or not all(_is_num(v) for v in th):
-        raise InputError(f"{path}: 'theta_hat' must be {K} finite numbers (one per feature)")
-    if method == "discrete":
-        _check_marginals(doc, path, K)
-        trace = doc.get("trace")
-        if trace is not None and (not isinstance(trace, list) or not trace or not all(
-                isinstance(e, dict) and _is_num(e.get("beta_hat")) and _is_num(e.get("entropy"))
-                for e in trace)):
-            raise InputError(f"{path}: 'trace' must be a list of entries with beta_hat and entropy")
-    elif method in SAMPLED and "samples" not in doc:
-        raise InputError(f"{path}: a {method} result needs 'samples'")
-
-
-def _check_marginals(doc, path, K: int) -> None:
-    m = doc.get("marginals")
-    try:
-        b, t = m["beta"], m["theta"]
-        bv, bp = np.asarray(b["values"], dtype=float), np.asarray(b["probabilities"], dtype=float)
-        tv, tp = np.asarray(t["values"], dtype=float), np.asarray(t["probabilities"], dtype=float)
-    except (TypeError, KeyError, ValueError):
-        raise InputError(f"{path}: a discrete result needs 'marginals' of beta and theta "
-                         "(values and probabilities)") from None
-    if bv.ndim != 1 or bv.shape != bp.shape or bv.size == 0:
-        raise InputError(f"{path}: marginals.beta: values and probabilities must be equal-length lists")
-    if tv.ndim != 2 or tv.shape[1] != K or tp.shape != (tv.shape[0],):
-        raise InputError(f"{path}: marginals.theta: expected [n, {K}] values and n probabilities")
-    for what, p in (("beta", bp), ("theta", tp)):
-        if not np.all(np.isfinite(p)) or (p < 0).any() or p.sum() <= 0:
-            raise InputError(f"{path}: marginals.{what}: probabilities must be finite, >= 0, not all 0")
-
-
-def load_samples(doc: dict[str, Any], path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(chain [n], beta [n], theta [n, K])`` of a sampling result.
-
-    ``samples`` is inline (``{"chain", "beta", "theta"}``) or the path of a CSV
-    ``chain,draw,beta,<feature names>``; a relative path not found as given is looked up
-    in the folder of the result ``path``.
-    """
-    path = Path(path)
-    names = doc["feature_names"]
-    K = len(names)
-    s = doc["samples"]
-    if isinstance(s, dict):
-        try:
-            chain = np.asarray(s["chain"], dtype=np.int64)
-            beta = np.asarray(s["beta"], dtype=float)
-            theta = np.asarray(s["theta"], dtype=float).reshape(len(beta), K)
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"{path}: 'samples' must hold chain, beta and theta ({K} per draw) "
-                             "of equal length") from None
-    elif isinstance(s, str):
-        csv_path = Path(s)
-        if not csv_path.is_file() and not csv_path.is_absolute():
-            csv_path = path.parent / csv_path
-        if not csv_path.is_file() and (path.parent / Path(s).name).is_file():
-            csv_path = path.parent / Path(s).name
-        if not csv_path.is_file():
-            raise InputError(f"{path}: its samples file {s} is not found (looked beside the result too)")
-        chain, beta, theta = _read_samples_csv(csv_path, names)
-    else:
-        raise InputError(f"{path}: 'samples' must be an object or the path of a CSV")
-    if chain.shape != beta.shape or len(beta) == 0:
-        raise InputError(f"{path}: 'samples' must hold at least one draw, chain and beta of equal length")
-    if not (np.all(np.isfinite(beta)) and np.all(np.isfinite(theta))):
-        raise InputError(f"{path}: 'samples' hold non-finite values")
-    return chain, beta, theta
-
-
-def _read_samples_csv(path: Path, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    with open(path, encoding="utf-8", newline="") as fh:
-        rows = list(csv.reader(fh))
-    want = ["chain", "draw", "beta", *names]
-    if not rows or rows[0] != want:
-        raise InputError(f"{path}:1: expected the header {','.join(want)}")
-    try:
-        data = np.array([[float(v) for v in r] for r in rows[1:] if r], dtype=float)
-    except ValueError:
-        raise InputError(f"{path}: every value after the header must be a number") from None
-    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(want):
-        raise InputError(f"{path}: expected at least one row of {len(want)} numbers")
-    return data[:, 0].astype(np.int64), data[:, 2], data[:, 3:]
-
-
-def check_features(doc: dict[str, Any], result_path, mdp: TabularMDP, mdp_label) -> None:
-    """The map's features must be the result's ``feature_names``, in order."""
-    have, want = list(mdp.feature_names), list(doc["feature_names"])
-    if have != want:
-        raise InputError(f"{mdp_label}: its features ({', '.join(have)}) do not match the "
-                         f"feature_names of {result_path} ({', '.join(want)})")
 
 
 # --------------------------------------------------------------------- posterior
@@ -377,10 +246,10 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
 
     Returns the legend handles (zones, markers, episodes).
     """
-    from .warehouse import WarehouseMap
+    from ..worlds.warehouse import WarehouseMap
 
     if isinstance(zone_map, WarehouseMap):  # a floor plan: roads as arrows, restricted red
-        from .warehouse_render import draw_floor_plan, floor_plan_legend_handles
+        from .floorplan import draw_floor_plan, floor_plan_legend_handles
 
         draw_floor_plan(ax, zone_map, legend=False)
         grid = zone_map
@@ -436,7 +305,7 @@ def result_figure(
     Parameters
     ----------
     doc : dict
-        The result, as checked by :func:`load_result`.
+        The result, as checked by :func:`~expertise_irl.results.load_result`.
     source : str or Path
         The result's file: its folder is where a samples CSV is looked up; its name is
         in the title.
@@ -449,7 +318,7 @@ def result_figure(
     names = list(doc["feature_names"])
     K = len(names)
     truth = doc.get("truth") if isinstance(doc.get("truth"), dict) else {}
-    beta_true = truth.get("beta") if _is_num(truth.get("beta")) else None
+    beta_true = truth.get("beta") if is_number(truth.get("beta")) else None
     theta_true = truth.get("theta") if isinstance(truth.get("theta"), list) and len(
         truth.get("theta")) == K else None
     trace = doc.get("trace") if method == "discrete" else None
@@ -512,7 +381,7 @@ def result_figure(
         mp = doc.get("map") if isinstance(doc.get("map"), dict) else {}
         b_int = ci.get("beta") if _valid_interval(ci.get("beta")) else None
         draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=doc["beta_hat"],
-                     point=mp.get("beta") if _is_num(mp.get("beta")) else None, true=beta_true)
+                     point=mp.get("beta") if is_number(mp.get("beta")) else None, true=beta_true)
         ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
         t_ints = ci.get("theta") if isinstance(ci.get("theta"), list) and len(ci.get("theta")) == K else None
         mp_t = mp.get("theta") if isinstance(mp.get("theta"), list) and len(mp.get("theta")) == K else None
@@ -543,7 +412,7 @@ def result_figure(
         subtitle += "; red = the truth (θ*, β*)"
     data = doc.get("data") if isinstance(doc.get("data"), dict) else {}
     what = ""
-    if _is_num(data.get("episodes")) and _is_num(data.get("actions")):
+    if is_number(data.get("episodes")) and is_number(data.get("actions")):
         what = f", {int(data['episodes'])} episodes, {int(data['actions'])} actions"
     fig.suptitle(f"{source.name}: {method}{what}; β̂ = {doc['beta_hat']:.3g} "
                  f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}", fontsize=10)
@@ -564,4 +433,4 @@ def result_warnings(doc: dict[str, Any]) -> list[str]:
 
 
 def _valid_interval(v) -> bool:
-    return isinstance(v, list | tuple) and len(v) == 2 and all(_is_num(x) for x in v) and v[0] <= v[1]
+    return isinstance(v, list | tuple) and len(v) == 2 and all(is_number(x) for x in v) and v[0] <= v[1]

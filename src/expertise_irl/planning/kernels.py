@@ -1,9 +1,9 @@
-"""JAX kernels of batched soft value iteration (used by :mod:`expertise_irl.planning`).
+"""JAX kernels of batched soft value iteration (used by :mod:`expertise_irl.planning.soft_vi`).
 
 Layout. States are split into two blocks by the parity of their distance to a goal
 (:func:`sweep_blocks`); a sweep updates block 0, then block 1 with the fresh block-0
 values (red-black Gauss–Seidel). Hypotheses are the minor axis, in *lanes* (8 float64 on
-an AVX-512 machine; the width is chosen per machine by :mod:`expertise_irl.tuning`), and
+an AVX-512 machine; the width is chosen per machine by :mod:`expertise_irl.planning.tuning`), and
 several lane groups are vmapped side by side, which lets XLA spread them over the cores.
 Everything is in scaled units: with weights ``w = θ/β`` the reward is ``r = w·φ`` and
 ``V = β v``. The backup itself is the observation model's
@@ -24,6 +24,7 @@ plain sweeps' whatever happened before.
 
 from __future__ import annotations
 
+import weakref
 from functools import partial
 from typing import NamedTuple
 
@@ -31,13 +32,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .mdp import TabularMDP
-from .models import backup
-
-jax.config.update("jax_enable_x64", True)
+from ..mdp import TabularMDP
+from ..models import backup
 
 #: Hypotheses along the minor (vector) axis of one group where none is chosen for the machine
-#: (:mod:`expertise_irl.tuning` picks it at first use). XLA's CPU code ran about twice as fast
+#: (:mod:`expertise_irl.planning.tuning` picks it at first use). XLA's CPU code ran about twice as fast
 #: per backup with 8 float64 lanes (one AVX-512 vector) as with 16 or more on an AVX-512 machine.
 LANES = 8
 #: Sweeps between convergence checks (a converged lane may do up to CHECK_EVERY - 1 more,
@@ -134,6 +133,35 @@ def prepare(mdp: TabularMDP, dtype) -> Prepared:
                     jnp.asarray(ok), jnp.asarray(log_n, dtype=dtype), rows, n_block)
 
 
+#: Memory budget for one chunk of hypotheses (bytes of [H, S, A] work arrays).
+DEFAULT_CHUNK_BYTES = 1 * 2**20
+
+_PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def prepared(mdp: TabularMDP, dtype: str) -> Prepared:
+    """The MDP in the solver's layout, kept while the (immutable) MDP lives: samplers that
+    solve one hypothesis at a time on the same task pay the set-up once."""
+    per_mdp = _PREPARED.setdefault(mdp, {})
+    if dtype not in per_mdp:
+        per_mdp[dtype] = prepare(mdp, jnp.float64 if dtype == "float64" else jnp.float32)
+    return per_mdp[dtype]
+
+
+def default_chunk_size(mdp: TabularMDP, dtype=np.float64, budget_bytes: int = DEFAULT_CHUNK_BYTES,
+                       lanes: int = LANES) -> int:
+    """Hypotheses in flight at once (a multiple of the lane width ``lanes``).
+
+    Sized so the lanes' values (``[S, chunk]``) stay near ``budget_bytes``: 144 on a 30×30
+    map, fewer on large maps, never fewer than 32 hypotheses or more than 256 (rounded down
+    to whole lane groups). Measured on 2 cores with 8 lanes: 128-144 lanes are fastest on
+    883 states, 32 on 4,546 states.
+    """
+    per_hypothesis = mdp.n_states * np.dtype(dtype).itemsize  # rewards are recomputed per sweep
+    n = min(256, max(32, budget_bytes // per_hypothesis))
+    return int(lanes * max(1, n // lanes))
+
+
 def block_backup(prep: Prepared, b: int, w, v, gamma, model: str):
     """Backup of block ``b`` for one lane group: (values [n_block, L], log π [A, n_block, L]).
 
@@ -196,7 +224,7 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     Args:
         weights: ``[H, K]`` scaled reward weights θ/β.
         v0: ``[H, rows]`` initial scaled values in solver rows.
-        gamma, tol, max_iter: scalars (see :func:`expertise_irl.planning.solve`).
+        gamma, tol, max_iter: scalars (see :func:`expertise_irl.planning.soft_vi.solve`).
 
     Returns ``(v [H, rows], sweeps [H], last change [H])``; the last change is 0 for every
     hypothesis that met its tolerance, and positive (or NaN) for one that did not.

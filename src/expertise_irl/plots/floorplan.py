@@ -2,7 +2,7 @@
 
 Roads are green arrows in their travel direction, restricted areas red, obstacles dark,
 goals gold discs, start cells grey squares; visited cells are blue dots. Drawing is in
-image orientation as in :mod:`expertise_irl.worlds.render`: cell (col, row) is centred
+image orientation as in :mod:`expertise_irl.plots.maps`: cell (col, row) is centred
 on data coordinates (col, row), row 0 at the top, whatever ``y_up`` says about the
 recordings (their samples are converted to these coordinates by :func:`to_plot_coords`).
 """
@@ -19,14 +19,14 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
 from ..errors import InputError
-from . import render
-from .warehouse import RESTRICTED, WarehouseMap
-from .zones import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
+from ..worlds.warehouse import RESTRICTED, WarehouseMap
+from ..worlds.zones import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
+from . import maps as render
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from ..recordings import Discretised
+    from ..demos.recordings import Discretised
 
 CELL_COLORS: dict[str, str] = {
     FREE: "#f7f7f5", START: "#f7f7f5", GOAL: "#f7f7f5",

@@ -14,15 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from ..worlds import render
-from ..worlds.result_plots import (
-    draw_discrete_component,
-    draw_point,
-    draw_sampled,
-    theta_component_marginal,
-)
 from ..worlds.warehouse import WarehouseMap
-from ..worlds.warehouse_render import PATH_COLOR, draw_cell_path, draw_floor_plan
+from . import maps as render
+from .floorplan import PATH_COLOR, draw_cell_path, draw_floor_plan
+from .results import draw_discrete_component, draw_point, draw_sampled, theta_component_marginal
 
 OPTIMAL_COLOR = "#0b7261"
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from .errors import InputError, where
+from ..errors import InputError, where
 
 
 def read_rows(path: str | Path, *, kind: str, nothing: str) -> list[tuple[int, list[str]]]:

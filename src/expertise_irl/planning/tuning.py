@@ -1,6 +1,6 @@
 """The solver's lane width, measured on this machine at first use and cached.
 
-The batched solver (:mod:`expertise_irl.solver`) puts hypotheses along the vector axis of a
+The batched solver (:mod:`expertise_irl.planning.kernels`) puts hypotheses along the vector axis of a
 lane group. The best width depends on the machine: one AVX-512 vector holds 8 float64, an
 AVX2 vector 4, and XLA's code for wider groups differs again. The first solve in a dtype on a
 machine times a short run of each candidate width on the bundled 30×30 map (a few seconds,
@@ -29,8 +29,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import NamedTuple
 
-from .cache import user_cache_dir
-from .errors import InputError
+from ..cache import user_cache_dir
+from ..errors import InputError
 
 LANES_ENV = "EXPERTISE_IRL_LANES"
 TUNING_FILE_ENV = "EXPERTISE_IRL_TUNING_FILE"
@@ -109,14 +109,14 @@ def lane_width(dtype: str = "float64", *, measure: bool = True) -> int:
     """The lane width for ``dtype`` on this machine (see the module's description).
 
     With ``measure=False`` a width not known yet (no override, nothing cached) is not measured:
-    the built-in default :data:`expertise_irl.solver.LANES` is used. The solver does that for
+    the built-in default :data:`expertise_irl.planning.kernels.LANES` is used. The solver does that for
     small sets, where the width hardly matters and a first-use pause would.
     """
     known = _known(dtype)
     if known is not None:
         return known.lanes
     if not measure:
-        from .solver import LANES
+        from .kernels import LANES
 
         return LANES
     return lane_choice(dtype).lanes
@@ -222,22 +222,21 @@ def _measure(dtype: str) -> LaneChoice:
     import jax.numpy as jnp
     import numpy as np
 
-    from . import solver
-    from .hypotheses import THETA_PRESETS, theta_grid
-    from .planning import _prepared, default_chunk_size
-    from .worlds.maps import resolve_world
+    from ..hypotheses import THETA_PRESETS, theta_grid
+    from ..worlds.maps import resolve_world
+    from . import kernels as solver
 
     candidates = CANDIDATES.get(jax.default_backend(), ())
     if not candidates:
         return LaneChoice(solver.LANES, "default", {})
     mdp = resolve_world("zones30").to_mdp()
-    prep = _prepared(mdp, dtype)
+    prep = solver.prepared(mdp, dtype)
     jdtype = jnp.float64 if dtype == "float64" else jnp.float32
     thetas = theta_grid(THETA_PRESETS["paper-sim"], mdp.n_features)
     consts = (jnp.asarray(mdp.gamma, jdtype), jnp.asarray(1e-300, jdtype), jnp.asarray(_SWEEPS))
     rates: dict[int, float] = {}
     for lanes in candidates:
-        slots = default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
+        slots = solver.default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
         H = _POOLS * slots
         weights = jnp.asarray(thetas[np.arange(H) % len(thetas)])
         v0 = jnp.zeros((H, prep.n_rows))

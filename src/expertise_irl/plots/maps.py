@@ -27,22 +27,12 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
 from ..errors import InputError
-from .zones import (
-    AVOID,
-    FREE,
-    GOAL,
-    OBSTACLE,
-    ROAD_DIRECTIONS,
-    SLOW,
-    START,
-    TRAFFIC,
-    ZoneMap,
-)
+from ..worlds.zones import AVOID, FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, SLOW, START, TRAFFIC, ZoneMap
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from ..demos import Trajectories
+    from ..demos.trajectories import Trajectories
     from ..mdp import TabularMDP
 
 #: Fill colour of each cell character (roads share one colour).

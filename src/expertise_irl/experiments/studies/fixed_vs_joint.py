@@ -42,7 +42,7 @@ from ...errors import InputError
 from ..engine import Column, Study, TaskSpec, seed_sequence
 
 if TYPE_CHECKING:
-    from ...demos import Trajectories
+    from ...demos.trajectories import Trajectories
 
 GROUPS = ("high", "medium", "low")
 TRUTHS = ("in_set", "out_of_set")
@@ -140,13 +140,13 @@ def _map(seed: int, e: int, lo: int, hi: int):
 
 
 def solve_padded(mdp, theta, beta, model: str = "maxent"):
-    """:func:`~expertise_irl.planning.solve` with the batch padded to a power of two (at least 8).
+    """:func:`~expertise_irl.planning.soft_vi.solve` with the batch padded to a power of two (at least 8).
 
     The solver compiles once per batch shape; padding (repeating the last hypothesis) keeps
     the shapes of a sweep to a handful, and a given input always gets the same padding, so
     the result is a function of the input alone.
     """
-    from ...planning import solve
+    from ...planning.soft_vi import solve
 
     theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
     beta = np.atleast_1d(np.asarray(beta, dtype=np.float64))
@@ -189,7 +189,7 @@ class Person:
 def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str, truth: str) -> Person:
     """Rebuild the person of identity ``(e, r, k, group, truth)`` (bit for bit, in any study)."""
     from ...hypotheses import BETA_PRESETS
-    from ...inference.conditions import (
+    from ...inference.hypothesis_sets import (
         fixed_beta_set,
         fixed_theta_set,
         full_set,
@@ -220,7 +220,8 @@ def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str,
 def simulate_episodes(mdp, log_policy, seq: np.random.SeedSequence, n: int, max_steps: int) -> Trajectories:
     """``n`` episodes of a person with ``log_policy`` [S, A], episode j seeded by ``seq``'s j-th child
     (so the first n episodes are the same whatever the total)."""
-    from ...demos import Trajectories, simulate
+    from ...demos.simulation import simulate
+    from ...demos.trajectories import Trajectories
 
     parts = []
     for j, ss in enumerate(seq.spawn(n)):
@@ -283,7 +284,7 @@ def _subset_rows(hyp, sub) -> np.ndarray:
 def run_task(cfg: ConditionsConfig, seed: int, params: dict) -> tuple[dict[str, np.ndarray], dict]:
     """Every person of one (environment, run, k), scored from one solve of Ψ_k."""
     from ...hypotheses import BETA_PRESETS
-    from ...inference.conditions import full_set
+    from ...inference.hypothesis_sets import full_set
 
     e, r, k = int(params["environment"]), int(params["run"]), int(params["k"])
     _, mdp = environment(cfg, seed, e)
@@ -302,10 +303,10 @@ def run_task(cfg: ConditionsConfig, seed: int, params: dict) -> tuple[dict[str, 
 
 def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.ndarray]:
     """The rows of one person: every condition × episode count 1..N."""
-    from ...demos import capped_flags
+    from ...demos.simulation import capped_flags
     from ...hypotheses import HypothesisSet, expertise_group
     from ...inference.belief import DiscreteBelief
-    from ...inference.conditions import set_composition
+    from ...inference.hypothesis_sets import set_composition
 
     trajs = p.trajectories
     eps = trajs.episodes()

@@ -1,0 +1,180 @@
+"""A simulated person: episodes drawn from the policy of one hypothesis (θ, β) on an MDP."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..mdp import TabularMDP
+from ..models import DEFAULT_MODEL, check_model
+from ..planning.soft_vi import solve
+from .trajectories import Trajectories
+
+DEFAULT_MAX_STEPS = 500
+
+
+def _check_hypothesis(mdp: TabularMDP, theta, beta) -> tuple[np.ndarray, float]:
+    th = np.asarray(theta, dtype=np.float64)
+    if th.shape != (mdp.n_features,):
+        raise InputError(
+            f"theta must have shape [K] with K = {mdp.n_features} features "
+            f"({', '.join(mdp.feature_names)}), got shape {th.shape}"
+        )
+    if not np.all(np.isfinite(th)) or np.any(th < 0):
+        raise InputError(f"theta must be finite and non-negative, got {th.tolist()}")
+    b = np.asarray(beta, dtype=np.float64)
+    if b.shape != () or not np.isfinite(b) or b <= 0:
+        raise InputError(f"beta must be a single finite number > 0, got {beta!r}")
+    return th, float(b)
+
+
+def _check_log_policy(mdp: TabularMDP, log_policy) -> np.ndarray:
+    lp = np.asarray(log_policy, dtype=np.float64)
+    S, A = mdp.n_states, mdp.n_actions
+    if lp.shape != (S, A):
+        raise InputError(f"log_policy must have shape [S, A] = [{S}, {A}], got {lp.shape}")
+    pi = np.exp(lp)
+    if np.isnan(pi).any() or np.any(pi[~mdp.available] > 0):
+        raise InputError("log_policy must be -inf on unavailable actions and contain no NaN")
+    row = pi.sum(axis=1)
+    bad = ~mdp.terminal & ~(np.abs(row - 1.0) <= 1e-6)
+    if bad.any():
+        s = int(np.flatnonzero(bad)[0])
+        raise InputError(f"log_policy of {mdp.describe_state(s)} sums to {row[s]:.6g}, not 1")
+    return lp
+
+
+def check_start_states(mdp: TabularMDP, starts, what: str = "starts") -> np.ndarray:
+    """``starts`` as an int array of non-terminal states (default: ``mdp.initial_states()``).
+
+    :class:`InputError` named after ``what`` for an empty list, a non-integer, an index out of
+    range or a terminal state.
+    """
+    if starts is None:
+        return np.asarray(mdp.initial_states(), dtype=np.int64)
+    st = np.atleast_1d(np.asarray(starts))
+    if st.ndim != 1 or st.size == 0 or not np.issubdtype(st.dtype, np.integer):
+        raise InputError(f"{what} must be a non-empty 1-D array of state indices")
+    st = st.astype(np.int64)
+    out = (st < 0) | (st >= mdp.n_states)
+    if out.any():
+        raise InputError(f"{what}: {int(st[out][0])} is not a state index in [0, {mdp.n_states})")
+    term = mdp.terminal[st]
+    if term.any():
+        raise InputError(f"{what}: {mdp.describe_state(int(st[term][0]))} is terminal (a goal)")
+    return st
+
+
+def simulate(
+    mdp: TabularMDP,
+    theta,
+    beta,
+    n_episodes: int,
+    rng: np.random.Generator | int,
+    *,
+    starts=None,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    log_policy: np.ndarray | None = None,
+    model: str = DEFAULT_MODEL,
+) -> Trajectories:
+    """Episodes of a simulated person acting with the policy π(θ, β) of ``model``.
+
+    All episodes are advanced together, one step at a time; each step draws one
+    uniform number per active episode and picks the action by inverse-CDF sampling
+    from the cumulative policy. The same ``rng`` state gives identical output.
+
+    Parameters
+    ----------
+    mdp : TabularMDP
+        The task.
+    theta : array ``[K]``
+        Reward weights, finite and ``>= 0``; used as given (not normalised).
+    beta : float
+        Expertise (temperature), ``> 0``.
+    n_episodes : int
+        Number of episodes N (``>= 0``).
+    rng : numpy.random.Generator or int
+        Source of all randomness (start states and actions); an int is used as a seed.
+    starts : array ``[M]`` of int, optional
+        Non-terminal states to start from, drawn uniformly per episode. Default:
+        ``mdp.initial_states()`` (the map's start cells, else every non-terminal state).
+    max_steps : int
+        An episode ends on entering a terminal state or after ``max_steps`` actions.
+        Truncating at a fixed step count does not bias the likelihood of the recorded
+        pairs: the stopping rule does not depend on the actions' probabilities under
+        any hypothesis, so it contributes the same factor to every hypothesis.
+    log_policy : array ``[S, A]``, optional
+        Use this log-policy instead of solving for ``(theta, beta)`` (e.g. one row of
+        ``planning.solve(...).log_policy``); ``theta`` and ``beta`` may then be None.
+    model : str
+        The observation model of :mod:`expertise_irl.models` (default ``"maxent"``, the
+        paper's); ignored when ``log_policy`` is given.
+
+    Returns
+    -------
+    Trajectories
+        ``[n]`` pairs; episodes labelled ``0..N-1``, steps ``0..T-1`` within each.
+
+    Raises
+    ------
+    InputError
+        Bad θ, β, ``starts``, ``max_steps``, ``n_episodes`` or ``log_policy``.
+    """
+    if log_policy is None:
+        if theta is None or beta is None:
+            raise InputError("simulate needs theta and beta (or a log_policy)")
+        th, b = _check_hypothesis(mdp, theta, beta)
+        log_policy = solve(mdp, th, b, model=check_model(model)).log_policy[0]
+    else:
+        if theta is not None or beta is not None:
+            _check_hypothesis(mdp, theta, beta)
+    lp = _check_log_policy(mdp, log_policy)
+    st = check_start_states(mdp, starts)
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) or n_episodes < 0:
+        raise InputError(f"n_episodes must be an integer >= 0, got {n_episodes!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise InputError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+
+    if not isinstance(rng, np.random.Generator):
+        if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
+            raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
+        rng = np.random.default_rng(int(rng))
+    cdf = np.cumsum(np.exp(lp), axis=1)
+    total = cdf[:, -1:]
+    # Dividing by the row total makes the last entry exactly 1.0, so u in [0, 1) never
+    # runs past the last action with positive probability. Terminal rows are never used.
+    cdf = np.where(total > 0, cdf / np.where(total > 0, total, 1.0), 1.0)
+    current = st[rng.integers(0, st.size, size=int(n_episodes))]
+    active = np.arange(int(n_episodes), dtype=np.int64)
+    chunks: list[tuple[np.ndarray, ...]] = []
+    for t in range(int(max_steps)):
+        if active.size == 0:
+            break
+        s = current[active]
+        u = rng.random(active.size)
+        a = np.sum(cdf[s] <= u[:, None], axis=1)
+        chunks.append((active, np.full(active.size, t, dtype=np.int64), s, a))
+        nxt = mdp.next_state[s, a]
+        current[active] = nxt
+        active = active[~mdp.terminal[nxt]]
+    if not chunks:
+        empty = np.zeros(0, dtype=np.int64)
+        return Trajectories(empty, empty, empty, empty)
+    ep, step, state, action = (np.concatenate(c) for c in zip(*chunks, strict=True))
+    order = np.lexsort((step, ep))
+    return Trajectories(ep[order], step[order], state[order], action[order])
+
+
+def capped_flags(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> np.ndarray:
+    """``[n_episodes]`` whether each episode ran to ``max_steps`` actions without entering a
+    terminal state (in episode order)."""
+    if len(trajs) == 0:
+        return np.zeros(0, dtype=bool)
+    last = np.flatnonzero(np.append(trajs.episode[1:] != trajs.episode[:-1], True))
+    ended = mdp.terminal[mdp.next_state[trajs.state[last], trajs.action[last]]]
+    return ~ended & (trajs.step[last] + 1 >= max_steps)
+
+
+def capped_episodes(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> int:
+    """Episodes that ran to ``max_steps`` actions without entering a terminal state."""
+    return int(np.sum(capped_flags(trajs, mdp, max_steps)))
