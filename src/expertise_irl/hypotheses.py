@@ -35,6 +35,8 @@ EXPERTISE_GROUPS: dict[str, tuple[float, ...]] = {
     "medium": (0.5, 1.0),
     "low": (5.0, 10.0),
 }
+#: The expertise groups' names, from most to least expert.
+GROUP_NAMES: tuple[str, ...] = tuple(EXPERTISE_GROUPS)
 #: Group boundaries: geometric midpoints between neighbouring groups (√(0.09·0.5), √(1·5)).
 GROUP_BOUNDARIES = (float(np.sqrt(0.09 * 0.5)), float(np.sqrt(1.0 * 5.0)))
 

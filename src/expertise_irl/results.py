@@ -23,9 +23,9 @@ import numpy as np
 from . import __version__
 from .errors import InputError
 from .hypotheses import expertise_group
-from .inference.belief import DiscreteBelief, Trace
 
 if TYPE_CHECKING:
+    from .inference.belief import DiscreteBelief, Trace
     from .mdp import TabularMDP
 
 

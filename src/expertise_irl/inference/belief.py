@@ -21,7 +21,7 @@ from scipy.special import logsumexp
 
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..hypotheses import HypothesisSet, expertise_group
+from ..hypotheses import GROUP_NAMES, HypothesisSet, expertise_group
 from ..mdp import TabularMDP
 from ..planning.soft_vi import solve
 from ..planning.table_likelihood import check_pairs, pair_log_likelihoods
@@ -37,7 +37,7 @@ class Trace(NamedTuple):
         entropy: ``[N + 1]`` posterior entropy (nats).
         truth_probability: ``[N + 1]`` probability of hypothesis ``truth`` (NaN if not given).
         group_probabilities: ``[N + 1, 3]`` posterior mass of the expertise groups, in the
-            order of :data:`TRACE_GROUPS` (high, medium, low).
+            order of :data:`GROUP_NAMES` (high, medium, low).
         beta_low, beta_high: ``[N + 1]`` the 5% and 95% quantiles of the β marginal. β takes
             only the values of the grid, so these are grid values: the smallest β whose
             cumulative probability (β sorted ascending) reaches 0.05, resp. 0.95. The band
@@ -54,11 +54,10 @@ class Trace(NamedTuple):
 
     def groups_at(self, i: int) -> dict[str, float]:
         """``{"high": p, "medium": p, "low": p}`` after ``i`` actions."""
-        return {g: float(v) for g, v in zip(TRACE_GROUPS, self.group_probabilities[i], strict=True)}
+        return {g: float(v) for g, v in zip(GROUP_NAMES, self.group_probabilities[i], strict=True)}
 
 
 #: Order of the columns of :attr:`Trace.group_probabilities`.
-TRACE_GROUPS = ("high", "medium", "low")
 #: Quantiles of the β marginal that bound the credible band of a trace (a 90% band).
 TRACE_BAND = (0.05, 0.95)
 
@@ -280,13 +279,13 @@ class DiscreteBelief:
         grid = np.unique(beta)  # ascending β values of the set
         in_value = (beta[None, :] == grid[:, None]).astype(float)  # [n_beta, H]
         groups = np.array([expertise_group(float(b)) for b in grid])
-        in_group = np.stack([groups == g for g in TRACE_GROUPS]).astype(float)  # [3, n_beta]
+        in_group = np.stack([groups == g for g in GROUP_NAMES]).astype(float)  # [3, n_beta]
         q_lo, q_hi = TRACE_BAND
         mb = np.empty(N + 1)
         mt = np.empty((N + 1, theta.shape[1]))
         ent = np.empty(N + 1)
         tp = np.full(N + 1, np.nan)
-        gp = np.empty((N + 1, len(TRACE_GROUPS)))
+        gp = np.empty((N + 1, len(GROUP_NAMES)))
         blo = np.empty(N + 1)
         bhi = np.empty(N + 1)
         running = self.log_prior + self.log_likelihood

@@ -26,9 +26,9 @@ import numpy as np
 
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..hypotheses import HypothesisSet, expertise_group
+from ..hypotheses import GROUP_NAMES, HypothesisSet, expertise_group
 from ..mdp import TabularMDP
-from .belief import TRACE_GROUPS, DiscreteBelief
+from .belief import DiscreteBelief
 
 
 class GroupProbabilities(dict):
@@ -201,7 +201,7 @@ class OnlineEstimator:
         # β marginal as a [H] -> [n_beta] sum: hypothesis h has β index h % n_beta.
         self._beta_index = np.tile(np.arange(hypotheses.n_beta), hypotheses.n_theta)
         groups = np.array([expertise_group(float(b)) for b in betas])
-        self._group_of_beta = np.stack([groups == g for g in TRACE_GROUPS]).astype(float)  # [3, n_beta]
+        self._group_of_beta = np.stack([groups == g for g in GROUP_NAMES]).astype(float)  # [3, n_beta]
         self._betas = betas.copy()
         self._ll = np.zeros(len(hypotheses))
         self._pairs: list[tuple[int, int, int, int]] = []  # (episode, step, state, action)
@@ -349,7 +349,7 @@ class OnlineEstimator:
             beta_values=self._betas,
             beta_probabilities=pb,
             group_probabilities=GroupProbabilities(
-                (k, float(v)) for k, v in zip(TRACE_GROUPS, g, strict=True)),
+                (k, float(v)) for k, v in zip(GROUP_NAMES, g, strict=True)),
             entropy=ent,
             map_theta=self._theta[h],
             map_beta=float(self._beta[h]),

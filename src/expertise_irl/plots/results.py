@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..hypotheses import GROUP_NAMES as GROUPS
 from ..results import SAMPLED, is_number, load_samples
 from . import maps as render
 
@@ -36,7 +37,6 @@ if TYPE_CHECKING:
     from ..worlds.zones import ZoneMap
 
 CREDIBLE = 0.9
-GROUPS = ("high", "medium", "low")
 GROUP_COLORS = {"high": "#2b8a3e", "medium": "#e67700", "low": "#c92a2a"}
 POST_COLOR = "#4c72b0"
 BAND_COLOR = "#a5c0e6"

@@ -37,6 +37,7 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..experiments import engine
+from ..hypotheses import GROUP_NAMES
 from ..results import file_digest, finite_or_null, map_digest, write_json
 from . import evidence as model_evidence
 from .manifest import Manifest, StudyTask, read_manifest
@@ -320,7 +321,7 @@ def _continuous_estimates(manifest: Manifest, rows) -> dict[str, dict[str, Any]]
         draws = res.get("draws")
         if draws:
             g = [expertise_group(b) for b in draws["beta"]]
-            groups = {k: g.count(k) / len(g) for k in ("high", "medium", "low")}
+            groups = {k: g.count(k) / len(g) for k in GROUP_NAMES}
         out[pid] = {"doc": res, "groups": groups, "per_task": None}
     return out
 

@@ -23,7 +23,6 @@ METRIC_RANGE = {"cosine_similarity": (0.0, 1.0), "expertise_distance": (0.0, np.
                 "policy_regret": (0.0, np.inf)}
 #: True where a larger value of the metric is better.
 HIGHER_IS_BETTER = {"cosine_similarity": True, "expertise_distance": False, "policy_regret": False}
-GROUPS = ("high", "medium", "low")
 
 
 class MeanCI(NamedTuple):

@@ -39,12 +39,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...errors import InputError
+from ...hypotheses import GROUP_NAMES as GROUPS
 from ..engine import Column, Study, TaskSpec, seed_sequence
 
 if TYPE_CHECKING:
     from ...demos.trajectories import Trajectories
 
-GROUPS = ("high", "medium", "low")
 TRUTHS = ("in_set", "out_of_set")
 CONDITIONS = ("full", "fixed_theta", "fixed_beta")
 FEATURES = ("length", "road", "avoid", "slow", "traffic")
