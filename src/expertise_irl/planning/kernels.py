@@ -250,6 +250,52 @@ def _final_backup(prep: Prepared, w, v, gamma, model: str):
     return vf[:, prep.rows], jnp.transpose(lp[:, :, prep.rows], (0, 2, 1))
 
 
+def _switch_relaxation(sor, v, d, fin, gamma, *, omega_ok: bool, groups: int):
+    """Over-relaxation per lane, after a plain check with certified change ``d``.
+
+    From the second plain check on, a lane contracting at about γ² per sweep starts it from its
+    current values; one that then contracts slower than γ² per sweep, or whose change is larger
+    than at the start (after a check's grace), stays plain from then on, from the start's values
+    unless its own certified change is already smaller. Returns ``(v, d, sor)``.
+    """
+    mode, checks, d_prev, v_save, d_save = sor
+    checks = checks + 1
+    rate = (d / d_prev) ** (1.0 / CHECK_EVERY)
+    start = omega_ok & (mode == _MEASURE) & (checks >= 2) & (rate >= 0.99 * gamma * gamma) & ~fin
+    back = (mode == _RELAX) & (checks >= 2) & ~((rate <= gamma * gamma) & (d <= d_save)) & ~fin
+    undo = back & ~(d < d_save)  # keep SOR's values where they are closer than the start's
+    v = jnp.where(_to_lanes(undo, groups)[:, None, :], v_save, v)
+    d = jnp.where(undo, d_save, d)
+    v_save = jnp.where(_to_lanes(start, groups)[:, None, :], v, v_save)
+    d_save = jnp.where(start, d, d_save)
+    mode = jnp.where(start, _RELAX, jnp.where(back, _PLAIN, mode))
+    checks = jnp.where(start, 0, checks)
+    return v, d, (mode, checks, d, v_save, d_save)
+
+
+def _retire(c, fin, conv, d, weights, v0, groups: int):
+    """Write finished lanes' values, sweeps and last change out, and hand them the next hypotheses."""
+    H = weights.shape[0]
+    w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
+    where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
+    out_v = out_v.at[where].set(_from_lanes(v), mode="drop")
+    out_it = out_it.at[where].set(it, mode="drop")
+    out_d = out_d.at[where].set(jnp.where(conv, 0.0, d), mode="drop")
+    new_h = next_h + jnp.cumsum(fin) - 1
+    take = fin & (new_h < H)
+    src = jnp.clip(new_h, 0, H - 1)
+    lane_h = jnp.where(take, new_h, lane_h)
+    w = jnp.where(_to_lanes(take, groups)[:, None, :], _to_lanes(weights[src], groups), w)
+    v = jnp.where(_to_lanes(take, groups)[:, None, :], _to_lanes(v0[src], groups), v)
+    it = jnp.where(take, 0, it)
+    active = jnp.where(fin, take, active)
+    next_h = jnp.minimum(next_h + jnp.sum(fin), H)
+    mode, checks, d_prev, v_save, d_save = sor
+    sor = (jnp.where(take, _MEASURE, mode), jnp.where(take, 0, checks),
+           jnp.where(take, jnp.inf, d_prev), v_save, d_save)
+    return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor
+
+
 def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
                relax: bool):
     dtype = prep.features.dtype
@@ -284,7 +330,7 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
 
     def body(c):
         w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
-        mode, checks, d_prev, v_save, d_save = sor
+        mode = sor[0]
         # CHECK_EVERY - 1 sweeps (over-relaxed in lanes that chose it), then a plain one.
         omega_l = _to_lanes(jnp.where(mode == _RELAX, omega, 1.0).astype(dtype), groups)
         v = jax.lax.fori_loop(0, CHECK_EVERY - 1,
@@ -295,44 +341,9 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         vmax = _from_lanes(jnp.max(jnp.abs(v), axis=1))
         conv = active & (d <= jnp.maximum(base_thresh, 8.0 * eps * vmax))
         fin = conv | (active & (it >= max_iter))
-        # Over-relaxation: from the second plain check on, a lane contracting at about γ² per
-        # sweep starts it from its current values; one that then contracts slower than γ² per sweep,
-        # or whose change is larger than at the start (after a check's grace), stays plain from
-        # then on, from the start's values unless its own certified change is already smaller.
-        checks = checks + 1
-        rate = (d / d_prev) ** (1.0 / CHECK_EVERY)
-        start = relax & (mode == _MEASURE) & (checks >= 2) & (rate >= 0.99 * gamma * gamma) & ~fin
-        back = (mode == _RELAX) & (checks >= 2) & ~((rate <= gamma * gamma) & (d <= d_save)) & ~fin
-        undo = back & ~(d < d_save)  # keep SOR's values where they are closer than the start's
-        v = jnp.where(_to_lanes(undo, groups)[:, None, :], v_save, v)
-        d = jnp.where(undo, d_save, d)
-        v_save = jnp.where(_to_lanes(start, groups)[:, None, :], v, v_save)
-        d_save = jnp.where(start, d, d_save)
-        mode = jnp.where(start, _RELAX, jnp.where(back, _PLAIN, mode))
-        checks = jnp.where(start, 0, checks)
-        sor = (mode, checks, d, v_save, d_save)
-
-        def retire(c):
-            w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
-            where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
-            out_v = out_v.at[where].set(_from_lanes(v), mode="drop")
-            out_it = out_it.at[where].set(it, mode="drop")
-            out_d = out_d.at[where].set(jnp.where(conv, 0.0, d), mode="drop")
-            new_h = next_h + jnp.cumsum(fin) - 1
-            take = fin & (new_h < H)
-            src = jnp.clip(new_h, 0, H - 1)
-            lane_h = jnp.where(take, new_h, lane_h)
-            w = jnp.where(_to_lanes(take, groups)[:, None, :], _to_lanes(weights[src], groups), w)
-            v = jnp.where(_to_lanes(take, groups)[:, None, :], _to_lanes(v0[src], groups), v)
-            it = jnp.where(take, 0, it)
-            active = jnp.where(fin, take, active)
-            next_h = jnp.minimum(next_h + jnp.sum(fin), H)
-            mode, checks, d_prev, v_save, d_save = sor
-            sor = (jnp.where(take, _MEASURE, mode), jnp.where(take, 0, checks),
-                   jnp.where(take, jnp.inf, d_prev), v_save, d_save)
-            return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor
-
-        return retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor))
+        v, d, sor = _switch_relaxation(sor, v, d, fin, gamma, omega_ok=relax, groups=groups)
+        return _retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor), fin, conv, d,
+                       weights, v0, groups)
 
     out = jax.lax.while_loop(cond, body, init)
     return out[6], out[7], out[8]

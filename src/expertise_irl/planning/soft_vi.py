@@ -193,23 +193,32 @@ def solve(
     """
     theta, beta = _as_hypotheses(mdp, theta, beta)
     check_model(model)
-    if model == "boltzmann":
-        # Hard values in reward units do not depend on β: solve each distinct θ once, at its
-        # smallest β (the tightest tolerance in scaled units), then finish every hypothesis
-        # from those values; the pool's own stopping rule still certifies each one.
-        uniq, inv = np.unique(theta, axis=0, return_inverse=True)
-        inv = inv.reshape(-1)
-        bmin = np.full(len(uniq), np.inf)
-        np.minimum.at(bmin, inv, beta)
-        opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "dtype": dtype,
-                "over_relax": False, "lanes": lanes}  # hard values: SOR trials fail and cost sweeps
-        hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, model=model, **opts)
-        sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, model=model, **opts)
-        return sol._replace(iterations=sol.iterations + hard.iterations[inv])
+    if model == "boltzmann":  # hard values: SOR trials fail and cost sweeps
+        return _solve_hard(mdp, theta, beta, tol=tol, max_iter=max_iter, chunk_size=chunk_size,
+                           dtype=dtype, progress=progress, lanes=lanes)
     opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model,
             "over_relax": over_relax, "lanes": lanes}
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
+    return _solve_two_phase(mdp, theta, beta, progress, opts)
+
+
+def _solve_hard(mdp, theta, beta, *, progress, **opts) -> SoftSolution:
+    """``boltzmann``: hard values in reward units do not depend on β, so each distinct θ is solved
+    once, at its smallest β (the tightest tolerance in scaled units), and every hypothesis
+    finishes from those values; the pool's own stopping rule still certifies each one."""
+    uniq, inv = np.unique(theta, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    bmin = np.full(len(uniq), np.inf)
+    np.minimum.at(bmin, inv, beta)
+    opts = {**opts, "over_relax": False, "model": "boltzmann"}
+    hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, **opts)
+    sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, **opts)
+    return sol._replace(iterations=sol.iterations + hard.iterations[inv])
+
+
+def _solve_two_phase(mdp, theta, beta, progress, opts) -> SoftSolution:
+    """``float32_start``: sweep in float32 down to its resolution, then finish in float64."""
     H = len(theta)
     try:
         rough = _solve(mdp, theta, beta, dtype="float32", v_init=None, **{**opts, "chunk_size": None},
