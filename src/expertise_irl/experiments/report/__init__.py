@@ -18,7 +18,7 @@ from .sweep import Sweep, check_directory, read_sweep
 
 #: study name -> (module of its report, the identity columns its rows are sorted by)
 REPORTS = {
-    "conditions": ("conditions", ("environment", "run", "k", "group", "truth", "condition", "method",
+    "conditions": ("fixed_vs_joint", ("environment", "run", "k", "group", "truth", "condition", "method",
                                   "episodes")),
     "cardinality": ("cardinality", ("environment", "run", "k", "group", "truth", "condition", "method",
                                     "episodes")),

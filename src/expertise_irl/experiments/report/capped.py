@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from ...hypotheses import GROUP_NAMES as GROUPS
 from .parts import Section, Table
-from .stats import GROUPS
 
 
 def last_rows(frame, person: list[str]):

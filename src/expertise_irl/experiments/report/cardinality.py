@@ -86,7 +86,8 @@ def build(sweep) -> Report:
 
 def capped_effect(at_n, last) -> str:
     """Table III's in-set regret row, split by expertise group, beside each group's capped share."""
-    from .stats import GROUPS, fmt
+    from ...hypotheses import GROUP_NAMES as GROUPS
+    from .stats import fmt
 
     inn = at_n[at_n["truth"] == "in_set"]
     shares = capped_shares(last[last["truth"] == "in_set"])

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from ...hypotheses import EXPERTISE_GROUPS, GROUP_BOUNDARIES
+from ...hypotheses import GROUP_NAMES as GROUPS
 from . import claims as C
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
 from .parts import Figure, Report
-from .stats import GROUPS, METRIC_AXES, METRIC_RANGE, METRICS, paired
+from .stats import METRIC_AXES, METRIC_RANGE, METRICS, paired
 from .sweep import require_columns
 from .tables import factor_rows, means_table, pearson_table
 

@@ -306,8 +306,8 @@ def source_caps(config) -> dict[str, int]:
 def capped_effect(at, last) -> str:
     """Per population (source and truth): the mean β distance of each expertise group under Ψ_k and
     under the full set, one sentence each (the capped shares are in the sentences before)."""
+    from ...hypotheses import GROUP_NAMES as GROUPS
     from .capped import population
-    from .stats import GROUPS
 
     pops = []
     for (source, truth), sub_last in last.groupby(["source", "truth"], sort=True, observed=True):

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...hypotheses import GROUP_NAMES as GROUPS
 from . import claims as C
 from . import figures as F
 from .capped import capped_section, last_rows
 from .parts import Figure, Report, Table
-from .stats import GROUPS, METRIC_AXES, METRIC_RANGE, METRICS, fmt, paired
+from .stats import METRIC_AXES, METRIC_RANGE, METRICS, fmt, paired
 from .sweep import require_columns, workers_text
 from .tables import factor_rows, means_table, pearson_cell, pearson_table
 
