@@ -21,6 +21,7 @@ from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import GROUP_NAMES, HypothesisSet, expertise_group
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.plots import results as rp
+from expertise_irl.results import check_result
 from expertise_irl.worlds.zones import load_bundled
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -358,11 +359,11 @@ def test_out_is_refused_when_it_exists_or_is_an_input(results, demos, tmp_path):
 
 def test_check_result_unit():
     with pytest.raises(InputError, match=r"r\.json: unknown method 'magic'"):
-        rp.check_result({"method": "magic"}, "r.json")
+        check_result({"method": "magic"}, "r.json")
     with pytest.raises(InputError, match="theta_hat"):
-        rp.check_result({"method": "map", "feature_names": ["a"], "beta_hat": 1.0,
-                         "theta_hat": [1, 2]}, "r.json")
-    rp.check_result({"method": "map", "feature_names": ["a"], "beta_hat": 1.0, "theta_hat": [1]}, "r.json")
+        check_result({"method": "map", "feature_names": ["a"], "beta_hat": 1.0,
+                      "theta_hat": [1, 2]}, "r.json")
+    check_result({"method": "map", "feature_names": ["a"], "beta_hat": 1.0, "theta_hat": [1]}, "r.json")
     assert expertise_group(0.5) == "medium"
 
 

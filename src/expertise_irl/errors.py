@@ -29,3 +29,12 @@ def where(source: str | Path | None, line: int | None = None, col: int | None = 
         if col is not None:
             loc += f":{col}"
     return loc + ": "
+
+
+def read_text(path: str | Path, problem: str = "not a text file (UTF-8)", *, encoding: str = "utf-8") -> str:
+    """The text of a user's file; one that is not ``encoding`` raises :class:`InputError`
+    ``path: problem``."""
+    try:
+        return Path(path).read_text(encoding=encoding)
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: {problem}") from None

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__
-from .errors import InputError
+from .errors import InputError, read_text
 from .hypotheses import expertise_group
 
 if TYPE_CHECKING:
@@ -245,10 +245,9 @@ def load_result(path: str | Path) -> dict[str, Any]:
     Raises :class:`InputError` naming ``path`` if it is not JSON or not a result.
     """
     path = Path(path)
+    text = read_text(path, "not a result JSON (not UTF-8 text)")
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a result JSON (not UTF-8 text)") from None
+        doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: not a result JSON (line {exc.lineno}: {exc.msg})") from None
     check_result(doc, path)

@@ -40,8 +40,8 @@ import numpy as np
 
 from ..errors import InputError, where
 from ..mdp import ACTION_DELTAS
+from ..worlds.grid import GOAL
 from ..worlds.warehouse import ACTION_AXIS, HORIZONTAL, VERTICAL, WarehouseMap
-from ..worlds.zones import GOAL
 from .csv_rows import read_rows
 from .trajectories import Trajectories, validate
 

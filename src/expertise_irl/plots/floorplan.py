@@ -19,8 +19,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
 from ..errors import InputError
+from ..worlds.grid import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
 from ..worlds.warehouse import RESTRICTED, WarehouseMap
-from ..worlds.zones import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
 from . import maps as render
 
 if TYPE_CHECKING:

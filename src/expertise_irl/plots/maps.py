@@ -27,7 +27,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
 from ..errors import InputError
-from ..worlds.zones import AVOID, FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, SLOW, START, TRAFFIC, ZoneMap
+from ..worlds.grid import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
+from ..worlds.zones import AVOID, SLOW, TRAFFIC, ZoneMap
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -22,7 +22,7 @@ from pathlib import Path
 from ..demos.csv_io import read_demos_csv
 from ..demos.recordings import Discretised, discretise_recording
 from ..demos.trajectories import Trajectories
-from ..errors import InputError
+from ..errors import InputError, read_text
 from ..worlds.warehouse import WarehouseMap, load_floor_plan
 
 REQUIRED = ("participant", "map")
@@ -92,10 +92,7 @@ def read_manifest(
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such manifest file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file (UTF-8)") from None
+    text = read_text(path, encoding="utf-8-sig")
     rows = list(csv.reader(text.splitlines()))
     if not rows or not any(c.strip() for c in rows[0]):
         raise InputError(

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..mdp import TabularMDP
+from ..worlds.grid import ROAD_DIRECTIONS
 from ..worlds.warehouse import ACTION_AXIS, RESTRICTED, WarehouseMap
-from ..worlds.zones import ROAD_DIRECTIONS
 
 COUNTS = (
     "path_length",

@@ -7,12 +7,12 @@
 
 from __future__ import annotations
 
-import tomllib
 from importlib import resources
 from pathlib import Path
 
 from ..errors import InputError
 from . import warehouse, zones
+from .files import read_toml
 
 WORLDS = ("zones", warehouse.WORLD)
 Map = zones.ZoneMap | warehouse.WarehouseMap
@@ -20,17 +20,9 @@ Map = zones.ZoneMap | warehouse.WarehouseMap
 
 def world_of(toml_path: Path, text: str | None = None) -> str:
     """The ``world`` named by a map's TOML (``"zones"`` when the file or the key is absent)."""
-    if text is None:
-        if not toml_path.is_file():
-            return "zones"
-        try:
-            text = toml_path.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise InputError(f"{toml_path}: not a text file (UTF-8)") from None
-    try:
-        world = tomllib.loads(text).get("world", "zones")
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{toml_path}: invalid TOML ({exc})") from None
+    if text is None and not toml_path.is_file():
+        return "zones"
+    world = read_toml(toml_path, text).get("world", "zones")
     if world not in WORLDS:
         raise InputError(f"{toml_path}: unknown world {world!r} (known: {', '.join(WORLDS)})")
     return world

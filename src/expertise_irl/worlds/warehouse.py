@@ -39,15 +39,15 @@ y is measured up from the bottom edge, so row ``H − 1`` is at the bottom.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..mdp import ACTION_DELTAS, DEFAULT_GAMMA, TabularMDP
-from .zones import DEFAULT_GOAL_BONUS, FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START, read_grid
+from ..errors import InputError, read_text
+from ..mdp import DEFAULT_GAMMA, TabularMDP
+from .files import check_goal_settings, check_known, map_file, number_setting, read_toml
+from .grid import DEFAULT_GOAL_BONUS, GOAL, START, GridMap, legend, read_grid, road_feature
 
 WORLD = "warehouse"
 HORIZONTAL, VERTICAL = 0, 1
@@ -57,15 +57,14 @@ HEADING_LETTERS = ("h", "v")
 ACTION_AXIS = np.array([VERTICAL, VERTICAL, HORIZONTAL, HORIZONTAL], dtype=np.int64)
 FEATURE_NAMES = ("length", "restricted", "road")
 RESTRICTED = "x"
-LEGEND = (FREE, OBSTACLE, GOAL, START, RESTRICTED, *ROAD_DIRECTIONS)
+LEGEND = legend(RESTRICTED)
 DEFAULT_CELL_SIZE = 1.0
-_OPPOSITE = np.array([1, 0, 3, 2])
 _NUMBER_SETTINGS = ("cell_size", "goal_bonus", "gamma")
 _SETTINGS = ("world", *_NUMBER_SETTINGS, "y_up")
 
 
 @dataclass(frozen=True, eq=False)
-class WarehouseMap:
+class WarehouseMap(GridMap):
     """A parsed floor plan. ``grid[row, col]`` holds one legend character.
 
     Attributes:
@@ -77,6 +76,7 @@ class WarehouseMap:
         name: file name or label, used in messages and figures.
     """
 
+    NOUN = "floor plan"
     grid: np.ndarray
     cell_size: float = DEFAULT_CELL_SIZE
     goal_bonus: float = DEFAULT_GOAL_BONUS
@@ -90,19 +90,10 @@ class WarehouseMap:
                 len(c) != 1 for c in raw.ravel().tolist()):
             raise InputError(f"{self.name}: a floor plan must be a non-empty rectangle of characters")
         g = raw.astype("<U1")
-        bad = ~np.isin(g, LEGEND)
-        if bad.any():
-            y, x = np.argwhere(bad)[0]
-            raise InputError(f"{self.name}:{y + 1}:{x + 1}: unknown floor-plan character "
-                             f"{g[y, x]!r} (legend: {' '.join(LEGEND)})")
-        if not (g == GOAL).any():
-            raise InputError(f"{self.name}: floor plan has no goal cell 'G'")
+        self._check_cells(g, LEGEND)
         if not (math.isfinite(self.cell_size) and self.cell_size > 0):
             raise InputError(f"{self.name}: cell_size must be a number > 0 (metres), got {self.cell_size}")
-        if not math.isfinite(self.goal_bonus):
-            raise InputError(f"{self.name}: goal_bonus must be a finite number")
-        if not 0.0 < float(self.gamma) < 1.0:
-            raise InputError(f"{self.name}: gamma must be in (0, 1), got {self.gamma}")
+        self._check_numbers()
         g.setflags(write=False)
         object.__setattr__(self, "grid", g)
         object.__setattr__(self, "cell_size", float(self.cell_size))
@@ -110,33 +101,8 @@ class WarehouseMap:
 
     # ------------------------------------------------------------------ cells
     @property
-    def height(self) -> int:
-        return int(self.grid.shape[0])
-
-    @property
-    def width(self) -> int:
-        return int(self.grid.shape[1])
-
-    @property
-    def passable(self) -> np.ndarray:
-        """``[height, width]`` bool: the cell is not an obstacle."""
-        return self.grid != OBSTACLE
-
-    @property
-    def cells(self) -> np.ndarray:
-        """``[C, 2]`` (col, row) of each passable cell, row-major order."""
-        rows, cols = np.nonzero(self.passable)
-        return np.stack([cols, rows], axis=1).astype(np.int64)
-
-    @property
     def n_states(self) -> int:
         return 2 * int(self.passable.sum())
-
-    def cell_index(self) -> np.ndarray:
-        """``[height, width]`` index of each passable cell (row-major), -1 for obstacles."""
-        idx = np.full(self.grid.shape, -1, dtype=np.int64)
-        idx[self.passable] = np.arange(int(self.passable.sum()))
-        return idx
 
     def state_index(self) -> np.ndarray:
         """``[2, height, width]`` state of (heading, row, col), -1 for obstacles."""
@@ -172,9 +138,6 @@ class WarehouseMap:
         y = ((self.height - 1 - r) if self.y_up else r) * c + 0.5 * c
         return x, y
 
-    def to_text(self) -> str:
-        return "\n".join("".join(row) for row in self.grid) + "\n"
-
     def settings_text(self) -> str:
         """The TOML that goes beside the map's text to reproduce this floor plan."""
         return (f'world = "{WORLD}"\ncell_size = {self.cell_size!r}\ngoal_bonus = {self.goal_bonus!r}\n'
@@ -185,21 +148,10 @@ class WarehouseMap:
         """Compile to a :class:`TabularMDP` with heading states and the three features."""
         g = self.grid
         cells = self.cells
-        cidx = self.cell_index()
         C = len(cells)
         cols, rows = cells[:, 0], cells[:, 1]
-        ncol = cols[:, None] + ACTION_DELTAS[None, :, 0]
-        nrow = rows[:, None] + ACTION_DELTAS[None, :, 1]
-        inside = (ncol >= 0) & (ncol < self.width) & (nrow >= 0) & (nrow < self.height)
-        ncc, nrc = np.clip(ncol, 0, self.width - 1), np.clip(nrow, 0, self.height - 1)
-        dest = np.where(inside, cidx[nrc, ncc], -1)  # [C, A] destination cell, -1 unavailable
-        dst = g[nrc, ncc]  # [C, A] destination character
-        act = np.arange(4)[None, :]
-        road_dir = np.full(dst.shape, -1)
-        for ch, d in ROAD_DIRECTIONS.items():
-            road_dir[dst == ch] = d
-        road = np.where(road_dir < 0, -1.0,
-                        np.where(road_dir == act, 1.0, np.where(road_dir == _OPPOSITE[act], -1.0, 0.0)))
+        dest, dst = self.moves()  # [C, A] destination cell (-1 unavailable) and its character
+        road = road_feature(dst, off_road=-1.0)
         restricted = -(dst == RESTRICTED).astype(float)
         bonus = np.where(dst == GOAL, self.goal_bonus, 0.0)
 
@@ -243,18 +195,9 @@ def parse_floor_plan(text: str, *, name: str = "<floor plan>", cell_size: float 
 def read_floor_plan_settings(path: Path, text: str | None = None) -> dict:
     """The settings of a floor-plan TOML (``world``, ``cell_size`` required), as keyword arguments
     of :func:`parse_floor_plan`. ``text`` is the TOML's content when already read."""
-    if text is None:
-        try:
-            text = path.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise InputError(f"{path}: not a text file (UTF-8)") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: invalid TOML ({exc})") from None
+    data = read_toml(path, text)
     for key in data:
-        if key not in _SETTINGS:
-            raise InputError(f"{path}: unknown setting {key!r} (known: {', '.join(_SETTINGS)})")
+        check_known(path, key, _SETTINGS)
     if data.get("world") != WORLD:
         raise InputError(f"{path}: a floor plan's TOML must say world = \"{WORLD}\"")
     if "cell_size" not in data:
@@ -262,34 +205,23 @@ def read_floor_plan_settings(path: Path, text: str | None = None) -> dict:
     out: dict = {}
     for key in _NUMBER_SETTINGS:
         if key in data:
-            value = data[key]
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise InputError(f"{path}: setting {key!r} must be a number, got {value!r}")
-            out[key] = float(value)
+            out[key] = number_setting(path, key, data[key])
     if "y_up" in data:
         if not isinstance(data["y_up"], bool):
             raise InputError(f"{path}: setting 'y_up' must be true or false, got {data['y_up']!r}")
         out["y_up"] = data["y_up"]
     if not (math.isfinite(out["cell_size"]) and out["cell_size"] > 0):
         raise InputError(f"{path}: cell_size must be a number > 0 (metres), got {out['cell_size']:g}")
-    if "gamma" in out and not 0.0 < out["gamma"] < 1.0:
-        raise InputError(f"{path}: gamma must be in (0, 1), got {out['gamma']:g}")
-    if "goal_bonus" in out and not math.isfinite(out["goal_bonus"]):
-        raise InputError(f"{path}: goal_bonus must be a finite number")
+    check_goal_settings(path, out)
     return out
 
 
 def load_floor_plan(path: str | Path) -> WarehouseMap:
     """Read a floor plan and the TOML beside it (``name.toml``, required)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such floor-plan file")
+    path = map_file(path, "floor-plan")
     toml = path.with_suffix(".toml")
     if not toml.is_file():
         raise InputError(f"{path}: a floor plan needs {toml.name} beside it, holding "
                          f"world = \"{WORLD}\" and cell_size")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text map (UTF-8)") from None
+    text = read_text(path, "not a text map (UTF-8)")
     return parse_floor_plan(text, name=str(path), **read_floor_plan_settings(toml))

@@ -27,29 +27,26 @@ loads either kind).
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, read_text
 from ..mdp import ACTION_DELTAS, DEFAULT_GAMMA, TabularMDP
+from .files import check_goal_settings, check_known, map_file, number_setting, read_toml
+from .grid import DEFAULT_GOAL_BONUS, FREE, GOAL, OBSTACLE, START, GridMap, legend, read_grid, road_feature
 
 FEATURE_NAMES = ("length", "road", "avoid", "slow", "traffic")
-DEFAULT_GOAL_BONUS = 10.0
 
-FREE, OBSTACLE, GOAL, START = ".", "#", "G", "S"
 AVOID, SLOW, TRAFFIC = "x", "s", "t"
-ROAD_DIRECTIONS = {"^": 0, "v": 1, "<": 2, ">": 3}  # road char -> action index of its direction
-LEGEND = (FREE, OBSTACLE, GOAL, START, AVOID, SLOW, TRAFFIC, *ROAD_DIRECTIONS)
-_OPPOSITE = np.array([1, 0, 3, 2])
-_SETTINGS = {"goal_bonus": float, "gamma": float}
+LEGEND = legend(AVOID, SLOW, TRAFFIC)
+_SETTINGS = ("goal_bonus", "gamma")
 
 
 @dataclass(frozen=True, eq=False)
-class ZoneMap:
+class ZoneMap(GridMap):
     """A parsed zone map. ``grid[y, x]`` holds one legend character.
 
     Attributes:
@@ -71,71 +68,25 @@ class ZoneMap:
         g = raw.astype("<U1")
         if g.ndim != 2 or g.size == 0:
             raise InputError(f"{self.name}: map must be a non-empty rectangle of cells")
-        bad = ~np.isin(g, LEGEND)
-        if bad.any():
-            y, x = np.argwhere(bad)[0]
-            raise InputError(
-                f"{self.name}:{y + 1}:{x + 1}: unknown map character {g[y, x]!r} "
-                f"(legend: {' '.join(LEGEND)})"
-            )
-        if not (g == GOAL).any():
-            raise InputError(f"{self.name}: map has no goal cell 'G'")
-        if not np.isfinite(self.goal_bonus):
-            raise InputError(f"{self.name}: goal_bonus must be a finite number")
-        if not 0.0 < float(self.gamma) < 1.0:
-            raise InputError(f"{self.name}: gamma must be in (0, 1), got {self.gamma}")
+        self._check_cells(g, LEGEND)
+        self._check_numbers()
         g.setflags(write=False)
         object.__setattr__(self, "grid", g)
 
-    @property
-    def height(self) -> int:
-        return int(self.grid.shape[0])
-
-    @property
-    def width(self) -> int:
-        return int(self.grid.shape[1])
-
-    @property
-    def passable(self) -> np.ndarray:
-        """``[height, width]`` bool: the cell is a state (not an obstacle)."""
-        return self.grid != OBSTACLE
-
-    @property
-    def cells(self) -> np.ndarray:
-        """``[S, 2]`` (x, y) of each state, row-major order."""
-        ys, xs = np.nonzero(self.passable)
-        return np.stack([xs, ys], axis=1).astype(np.int64)
-
     def state_index(self) -> np.ndarray:
         """``[height, width]`` state index of each cell, -1 for obstacles."""
-        idx = np.full(self.grid.shape, -1, dtype=np.int64)
-        idx[self.passable] = np.arange(int(self.passable.sum()))
-        return idx
-
-    def to_text(self) -> str:
-        return "\n".join("".join(row) for row in self.grid) + "\n"
+        return self.cell_index()
 
     def to_mdp(self) -> TabularMDP:
         """Compile to a :class:`TabularMDP` with the five features of the module docstring."""
         g = self.grid
-        idx = self.state_index()
         cells = self.cells
-        S = len(cells)
         xs, ys = cells[:, 0], cells[:, 1]
-        nx = xs[:, None] + ACTION_DELTAS[None, :, 0]
-        ny = ys[:, None] + ACTION_DELTAS[None, :, 1]
-        inside = (nx >= 0) & (nx < self.width) & (ny >= 0) & (ny < self.height)
-        nxc, nyc = np.clip(nx, 0, self.width - 1), np.clip(ny, 0, self.height - 1)
-        next_state = np.where(inside, idx[nyc, nxc], -1)  # obstacles are -1 in idx
+        next_state, dst = self.moves()  # [S, A]
         src = g[ys, xs][:, None]  # [S, 1]
-        dst = g[nyc, nxc]  # [S, A]
-        feats = np.zeros((S, 4, 5))
+        feats = np.zeros((len(cells), 4, 5))
         feats[..., 0] = -1.0 + np.where(dst == GOAL, self.goal_bonus, 0.0)
-        road_dir = np.full(dst.shape, -1)
-        for ch, d in ROAD_DIRECTIONS.items():
-            road_dir[dst == ch] = d
-        act = np.arange(4)[None, :]
-        feats[..., 1] = np.where(road_dir == act, 1.0, np.where(road_dir == _OPPOSITE[act], -1.0, 0.0))
+        feats[..., 1] = road_feature(dst, off_road=0.0)
         feats[..., 2] = -((src == AVOID) != (dst == AVOID)).astype(float)
         feats[..., 3] = -np.broadcast_to(src == SLOW, dst.shape).astype(float)
         feats[..., 4] = -((src == TRAFFIC) != (dst == TRAFFIC)).astype(float)
@@ -159,47 +110,9 @@ def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOA
     return ZoneMap(read_grid(text, name, LEGEND), goal_bonus=goal_bonus, gamma=gamma, name=name)
 
 
-def read_grid(text: str, name: str, legend: tuple[str, ...]) -> np.ndarray:
-    """``[height, width]`` characters of a text map whose cells are all in ``legend``.
-
-    Blank lines at the start and end and trailing spaces are ignored; rows must be equally
-    long. Problems raise :class:`InputError` naming ``name:line:column``.
-    """
-    lines = text.removeprefix("\ufeff").splitlines()
-    first = 0
-    while first < len(lines) and not lines[first].strip():
-        first += 1
-    rows = [ln.rstrip() for ln in lines[first:]]  # trailing spaces from editors are not cells
-    while rows and not rows[-1].strip():
-        rows.pop()
-    if not rows:
-        raise InputError(f"{name}: map is empty")
-    width = len(rows[0])
-    for i, row in enumerate(rows):
-        lineno = first + i + 1
-        if not row.strip():
-            raise InputError(f"{name}:{lineno}: blank line inside the map")
-        for j, ch in enumerate(row):
-            if ch not in legend:
-                raise InputError(
-                    f"{name}:{lineno}:{j + 1}: unknown map character {ch!r} (legend: {' '.join(legend)})"
-                )
-        if len(row) != width:
-            raise InputError(
-                f"{name}:{lineno}: row has {len(row)} cells but the first row has {width}; "
-                "every row must have the same length"
-            )
-    return np.array([list(r) for r in rows], dtype="<U1")
-
-
 def read_settings(path: Path) -> dict[str, float]:
     """Read the optional settings TOML; unknown keys or wrong types raise :class:`InputError`."""
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file (UTF-8)") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: invalid TOML ({exc})") from None
+    data = read_toml(path)
     out = {}
     for key, value in data.items():
         if key == "world":
@@ -207,28 +120,17 @@ def read_settings(path: Path) -> dict[str, float]:
                 raise InputError(f"{path}: world = {value!r}: not a zone map (this needs a map "
                                  "of the zone world, world = 'zones' or no world key)")
             continue
-        if key not in _SETTINGS:
-            raise InputError(f"{path}: unknown setting {key!r} (known: {', '.join(_SETTINGS)})")
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise InputError(f"{path}: setting {key!r} must be a number, got {value!r}")
-        out[key] = float(value)
-    if "gamma" in out and not 0.0 < out["gamma"] < 1.0:
-        raise InputError(f"{path}: gamma must be in (0, 1), got {out['gamma']:g}")
-    if "goal_bonus" in out and not np.isfinite(out["goal_bonus"]):
-        raise InputError(f"{path}: goal_bonus must be a finite number")
+        check_known(path, key, _SETTINGS)
+        out[key] = number_setting(path, key, value)
+    check_goal_settings(path, out)
     return out
 
 
 def load_map(path: str | Path) -> ZoneMap:
     """Read a text map and, if present, the settings TOML beside it (``name.toml``)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such map file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        hint = "; pass an MDP archive with --mdp" if path.suffix == ".npz" else ""
-        raise InputError(f"{path}: not a text map (UTF-8){hint}") from None
+    path = map_file(path, "map")
+    hint = "; pass an MDP archive with --mdp" if path.suffix == ".npz" else ""
+    text = read_text(path, f"not a text map (UTF-8){hint}")
     settings_path = path.with_suffix(".toml")
     settings = read_settings(settings_path) if settings_path.is_file() else {}
     return parse_map(text, name=str(path), **settings)
