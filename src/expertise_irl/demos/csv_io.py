@@ -4,14 +4,13 @@ the grid ``episode,step,x,y`` (with an optional ``heading`` column in heading wo
 from __future__ import annotations
 
 import csv
-import math
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError, where
 from ..mdp import ACTION_DELTAS, TabularMDP
-from .csv_rows import read_rows
+from .csv_rows import parse_int, read_rows
 from .trajectories import Trajectories, structure_error, validate, validate_rows
 
 #: Header of the generic format: one row per (state, action) pair.
@@ -101,31 +100,6 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
                 out.writerow([int(ep[i]), int(step[i]) + 1, *cell(mdp.next_state[s[i], a[i]])])
 
 
-_INT_LIMIT = 2**62  # far beyond any state, cell, step or episode label; keeps int64 safe
-
-
-def _parse_int(text: str, column: str, prefix: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        pass
-    else:
-        if abs(value) >= _INT_LIMIT:
-            raise InputError(f"{prefix}column '{column}': {text!r} is out of range")
-        return value
-    if not text:
-        raise InputError(f"{prefix}column '{column}' is empty")
-    try:
-        value = float(text)
-    except ValueError:
-        raise InputError(f"{prefix}column '{column}': {text!r} is not a number") from None
-    if not math.isfinite(value) or value != int(value):
-        raise InputError(f"{prefix}column '{column}': {text!r} is not an integer")
-    if abs(value) >= _INT_LIMIT:
-        raise InputError(f"{prefix}column '{column}': {text!r} is out of range")
-    return int(value)
-
-
 def _read_rows(path: str | Path, heading: bool = False) -> tuple[str, np.ndarray, np.ndarray,
                                                                   np.ndarray | None]:
     """Format name, ``[n, 4]`` int values, ``[n]`` line numbers of the data rows, and with
@@ -165,7 +139,7 @@ def _read_rows(path: str | Path, heading: bool = False) -> tuple[str, np.ndarray
             raise InputError(
                 f"{prefix}row has {len(fields)} fields, expected {len(header)} ({','.join(header)})"
             )
-        values[r] = [_parse_int(fields[i], c, prefix) for i, c in zip(pos, cols, strict=True)]
+        values[r] = [parse_int(fields[i], c, prefix) for i, c in zip(pos, cols, strict=True)]
         lines[r] = line
         if headings is not None:
             letter = fields[hpos].lower()

@@ -42,7 +42,7 @@ from ..errors import InputError, where
 from ..mdp import ACTION_DELTAS
 from ..worlds.grid import GOAL
 from ..worlds.warehouse import ACTION_AXIS, HORIZONTAL, VERTICAL, WarehouseMap
-from .csv_rows import read_rows
+from .csv_rows import parse_float, parse_int, read_rows
 from .trajectories import Trajectories, validate
 
 RECORDING_COLUMNS = ("episode", "t", "x", "y")
@@ -85,30 +85,6 @@ class Recording:
         return np.flatnonzero(self.episode == episode)
 
 
-def _number(text: str, column: str, prefix: str) -> float:
-    if not text:
-        raise InputError(f"{prefix}column '{column}' is empty")
-    try:
-        value = float(text)
-    except ValueError:
-        raise InputError(f"{prefix}column '{column}': {text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise InputError(f"{prefix}column '{column}': {text!r} is not a finite number")
-    return value
-
-
-def _episode(text: str, prefix: str) -> int:
-    if not text:
-        raise InputError(f"{prefix}column 'episode' is empty")
-    try:
-        value = int(text)
-    except ValueError:
-        raise InputError(f"{prefix}column 'episode': {text!r} is not an integer") from None
-    if abs(value) >= 2**62:
-        raise InputError(f"{prefix}column 'episode': {text!r} is out of range")
-    return value
-
-
 def read_recording(path: str | Path) -> Recording:
     """Read a recording CSV ``episode,t,x,y`` (columns by name, in any order; others ignored).
 
@@ -146,10 +122,10 @@ def read_recording(path: str | Path) -> Recording:
         if len(fields) != len(header):
             raise InputError(f"{prefix}row has {len(fields)} fields, expected {len(header)} "
                              f"({','.join(header)})")
-        e = _episode(fields[pos[0]], prefix)
+        e = parse_int(fields[pos[0]], "episode", prefix, strict=True)
         prefix += f"episode {e}: "
-        t, x, y = (_number(fields[i], c, prefix) for i, c in zip(pos[1:], RECORDING_COLUMNS[1:],
-                                                                  strict=True))
+        t, x, y = (parse_float(fields[i], c, prefix)
+                   for i, c in zip(pos[1:], RECORDING_COLUMNS[1:], strict=True))
         if r > 0 and e == episode[r - 1]:
             if t < values[r - 1, 0]:
                 raise InputError(f"{where(path, line)}episode {e} t={t:g}: time goes backwards (the "
