@@ -32,6 +32,7 @@ from ..demos.simulation import check_start_states
 from ..errors import InputError
 from ..mdp import TabularMDP
 from .belief import DiscreteBelief
+from .posterior import entropy
 
 TARGETS = ("joint", "beta")
 DEFAULT_SAMPLES = 48
@@ -91,7 +92,56 @@ def _entropies(logw: np.ndarray, target: str, n_theta: int, n_beta: int) -> np.n
         lp = np.log(p, out=np.full_like(p, -np.inf), where=p > 0)
     else:
         lp = logw - (m + np.log(z))
-    return -np.sum(np.multiply(p, lp, out=np.zeros_like(p), where=p > 0), axis=1)
+    return entropy(p, lp, axis=1)
+
+
+def _check_sizes(b: DiscreteBelief, mdp: TabularMDP, target: str, sizes: dict[str, int], rng):
+    """Raise :class:`InputError` on a bad argument; return ``rng`` as a Generator."""
+    if target not in TARGETS:
+        raise InputError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    for name, v in sizes.items():
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
+            raise InputError(f"{name} must be an integer >= 1, got {v!r}")
+    _, S, A = b.log_policy.shape
+    if (S, A) != (mdp.n_states, mdp.n_actions):
+        raise InputError(f"belief was solved on {S} states × {A} actions; the MDP has "
+                         f"{mdp.n_states} × {mdp.n_actions}")
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
+        raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
+    return np.random.default_rng(int(rng))
+
+
+def _episode_log_likelihoods(b: DiscreteBelief, mdp: TabularMDP, starts: np.ndarray, drawn: np.ndarray,
+                             u: np.ndarray) -> np.ndarray:
+    """``[len(starts) · n, H]`` log-likelihood of each simulated episode under every hypothesis.
+
+    Episode ``c · n + i`` starts at ``starts[c]`` and acts under hypothesis ``drawn[i]`` with the
+    uniform numbers ``u[:, i]`` (``u [max_steps, n]``), until a goal or ``max_steps`` actions.
+    """
+    A = b.log_policy.shape[2]
+    n = drawn.size
+    table = np.ascontiguousarray(np.transpose(b.log_policy, (1, 2, 0)))  # [S, A, H]
+    hs = np.tile(drawn, starts.size)  # episode e acts under hypothesis hs[e]
+    sample = np.tile(np.arange(n), starts.size)
+    state = np.repeat(starts, n)
+    ll = np.zeros((state.size, table.shape[2]))
+    active = np.arange(state.size)
+    for t in range(u.shape[0]):
+        if active.size == 0:
+            break
+        s = state[active]
+        cdf = np.cumsum(np.exp(b.log_policy[hs[active], s]), axis=1)  # [n_active, A]
+        cdf /= cdf[:, -1:]
+        a = np.minimum(np.sum(cdf <= u[t, sample[active], None], axis=1), A - 1)
+        # Guard against round-off picking an unavailable action at the top of the CDF.
+        a = np.where(mdp.next_state[s, a] >= 0, a, np.argmax(mdp.next_state[s] >= 0, axis=1))
+        ll[active] += table[s, a]
+        nxt = mdp.next_state[s, a]
+        state[active] = nxt
+        active = active[~mdp.terminal[nxt]]
+    return ll
 
 
 def expected_information_gain(
@@ -119,29 +169,18 @@ def expected_information_gain(
         rng: a Generator or a seed; the result is a pure function of it.
     """
     b, mdp = _resolve(belief, mdp)
-    if target not in TARGETS:
-        raise InputError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
-    for name, v in (("n_samples", n_samples), ("max_steps", max_steps), ("max_candidates", max_candidates)):
-        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
-            raise InputError(f"{name} must be an integer >= 1, got {v!r}")
-    H, S, A = b.log_policy.shape
-    if (S, A) != (mdp.n_states, mdp.n_actions):
-        raise InputError(f"belief was solved on {S} states × {A} actions; the MDP has "
-                         f"{mdp.n_states} × {mdp.n_actions}")
-    if not isinstance(rng, np.random.Generator):
-        if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
-            raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
-        rng = np.random.default_rng(int(rng))
+    rng = _check_sizes(b, mdp, target, {"n_samples": n_samples, "max_steps": max_steps,
+                                        "max_candidates": max_candidates}, rng)
     cand = _check_candidates(mdp, candidates)
     offered = cand.size
     if cand.size > max_candidates:
         cand = np.sort(rng.choice(cand, size=max_candidates, replace=False))
     hyp = b.hypotheses
+    H = len(hyp)
     log_post = b.log_posterior
     p = np.exp(log_post)
     drawn = rng.choice(H, size=n_samples, p=p / p.sum())  # [n]
     u = rng.random((max_steps, n_samples))  # shared by every candidate
-    table = np.ascontiguousarray(np.transpose(b.log_policy, (1, 2, 0)))  # [S, A, H]
     now = float(_entropies(log_post[None], target, hyp.n_theta, hyp.n_beta)[0])
 
     M = cand.size
@@ -149,25 +188,7 @@ def expected_information_gain(
     gains = np.empty((M, n_samples))
     for lo in range(0, M, per_block):
         c = cand[lo:lo + per_block]
-        E = c.size * n_samples
-        hs = np.tile(drawn, c.size)  # episode e acts under hypothesis hs[e]
-        sample = np.tile(np.arange(n_samples), c.size)
-        state = np.repeat(c, n_samples)
-        ll = np.zeros((E, H))
-        active = np.arange(E)
-        for t in range(max_steps):
-            if active.size == 0:
-                break
-            s = state[active]
-            cdf = np.cumsum(np.exp(b.log_policy[hs[active], s]), axis=1)  # [n_active, A]
-            cdf /= cdf[:, -1:]
-            a = np.minimum(np.sum(cdf <= u[t, sample[active], None], axis=1), A - 1)
-            # Guard against round-off picking an unavailable action at the top of the CDF.
-            a = np.where(mdp.next_state[s, a] >= 0, a, np.argmax(mdp.next_state[s] >= 0, axis=1))
-            ll[active] += table[s, a]
-            nxt = mdp.next_state[s, a]
-            state[active] = nxt
-            active = active[~mdp.terminal[nxt]]
+        ll = _episode_log_likelihoods(b, mdp, c, drawn, u)
         after = _entropies(log_post[None] + ll, target, hyp.n_theta, hyp.n_beta)
         gains[lo:lo + c.size] = (now - after).reshape(c.size, n_samples)
     gain = gains.mean(axis=1)

@@ -14,18 +14,19 @@ the offending step.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
-from scipy.special import logsumexp
 
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..hypotheses import GROUP_NAMES, HypothesisSet, expertise_group
+from ..hypotheses import GROUP_NAMES, HypothesisSet
 from ..mdp import TabularMDP
 from ..planning.soft_vi import solve
 from ..planning.table_likelihood import check_pairs, pair_log_likelihoods
 from ..planning.table_likelihood import log_likelihood as total_log_likelihood
+from .posterior import Summary, beta_quantile, summarise
 
 
 class Trace(NamedTuple):
@@ -57,20 +58,8 @@ class Trace(NamedTuple):
         return {g: float(v) for g, v in zip(GROUP_NAMES, self.group_probabilities[i], strict=True)}
 
 
-#: Order of the columns of :attr:`Trace.group_probabilities`.
 #: Quantiles of the β marginal that bound the credible band of a trace (a 90% band).
 TRACE_BAND = (0.05, 0.95)
-
-
-def normalize_log(logw: np.ndarray, axis: int = 0) -> np.ndarray:
-    """Log-probabilities from unnormalised log-weights (−inf allowed, not all)."""
-    return logw - logsumexp(logw, axis=axis, keepdims=True)
-
-
-def _entropy(p: np.ndarray, lp: np.ndarray, axis: int = 0) -> np.ndarray:
-    """−Σ p log p, with 0 log 0 = 0 (no 0·(−∞) is ever evaluated)."""
-    terms = np.multiply(p, lp, out=np.zeros_like(p), where=p > 0)
-    return -np.sum(terms, axis=axis)
 
 
 def _traj_label(trajs: Trajectories):
@@ -209,15 +198,20 @@ class DiscreteBelief:
 
         return float(logsumexp(self.log_prior + self.log_likelihood))
 
+    @cached_property
+    def summary(self) -> Summary:
+        """The posterior and its marginals, means, group masses and entropy (see :func:`summarise`)."""
+        return summarise(self.log_prior + self.log_likelihood, self.hypotheses)
+
     @property
     def log_posterior(self) -> np.ndarray:
         """``[H]`` normalised log posterior."""
-        return normalize_log(self.log_prior + self.log_likelihood)
+        return self.summary.log_probabilities.copy()
 
     @property
     def probabilities(self) -> np.ndarray:
         """``[H]`` posterior probabilities."""
-        return np.exp(self.log_posterior)
+        return self.summary.probabilities.copy()
 
     @property
     def n_impossible(self) -> int:
@@ -226,25 +220,21 @@ class DiscreteBelief:
 
     def marginal_beta(self) -> tuple[np.ndarray, np.ndarray]:
         """``(betas [n_beta], P(β) [n_beta])``."""
-        p = self.probabilities.reshape(self.hypotheses.n_theta, self.hypotheses.n_beta)
-        return self.hypotheses.betas.copy(), p.sum(axis=0)
+        return self.hypotheses.betas.copy(), self.summary.beta_marginal.copy()
 
     def marginal_theta(self) -> tuple[np.ndarray, np.ndarray]:
         """``(thetas [n_theta, K], P(θ) [n_theta])``."""
-        p = self.probabilities.reshape(self.hypotheses.n_theta, self.hypotheses.n_beta)
-        return self.hypotheses.thetas.copy(), p.sum(axis=1)
+        return self.hypotheses.thetas.copy(), self.summary.theta_marginal.copy()
 
     @property
     def mean_beta(self) -> float:
         """β̂ = E[β] (the paper's point estimate)."""
-        b, p = self.marginal_beta()
-        return float(b @ p)
+        return float(self.summary.mean_beta)
 
     @property
     def mean_theta(self) -> np.ndarray:
         """θ̂ = E[θ], ``[K]`` (unit l1 norm, as every hypothesis θ is)."""
-        t, p = self.marginal_theta()
-        return p @ t
+        return self.summary.mean_theta.copy()
 
     def map_hypothesis(self) -> tuple[np.ndarray, float, float]:
         """``(θ, β, probability)`` of the most probable hypothesis."""
@@ -254,17 +244,11 @@ class DiscreteBelief:
     @property
     def entropy(self) -> float:
         """Posterior entropy in nats."""
-        lp = self.log_posterior
-        return float(_entropy(np.exp(lp), lp))
+        return float(self.summary.entropy)
 
     def group_probabilities(self) -> dict[str, float]:
         """Posterior mass on each expertise group (high / medium / low)."""
-        betas, p = self.marginal_beta()
-        out = {"high": 0.0, "medium": 0.0, "low": 0.0}
-        for b, q in zip(betas.tolist(), p.tolist(), strict=True):
-            out[expertise_group(b)] += q
-        total = sum(out.values())
-        return {k: v / total for k, v in out.items()}
+        return self.summary.groups()
 
     def trace(self, trajs: Trajectories, *, truth: int | None = None, max_block: int = 2**24) -> Trace:
         """Live estimates after each action of ``trajs``, in order (see :class:`Trace`).
@@ -275,37 +259,9 @@ class DiscreteBelief:
         """
         states, actions = check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         H, N = len(self.hypotheses), len(states)
-        theta, beta = self.hypotheses.theta, self.hypotheses.beta
-        grid = np.unique(beta)  # ascending β values of the set
-        in_value = (beta[None, :] == grid[:, None]).astype(float)  # [n_beta, H]
-        groups = np.array([expertise_group(float(b)) for b in grid])
-        in_group = np.stack([groups == g for g in GROUP_NAMES]).astype(float)  # [3, n_beta]
-        q_lo, q_hi = TRACE_BAND
-        mb = np.empty(N + 1)
-        mt = np.empty((N + 1, theta.shape[1]))
-        ent = np.empty(N + 1)
-        tp = np.full(N + 1, np.nan)
-        gp = np.empty((N + 1, len(GROUP_NAMES)))
-        blo = np.empty(N + 1)
-        bhi = np.empty(N + 1)
+        parts = [self._trace_part(np.asarray(self.log_prior + self.log_likelihood)[:, None], truth)]
         running = self.log_prior + self.log_likelihood
         block = max(1, max_block // max(H, 1))
-
-        def stats(logw: np.ndarray, out: slice) -> None:  # logw [H, n]
-            lp = normalize_log(logw, axis=0)
-            p = np.exp(lp)
-            mb[out] = beta @ p
-            mt[out] = (theta.T @ p).T
-            ent[out] = _entropy(p, lp, axis=0)
-            if truth is not None:
-                tp[out] = p[truth]
-            pb = in_value @ p  # [n_beta, n] β marginal
-            gp[out] = (in_group @ pb).T
-            cdf = np.cumsum(pb, axis=0) / pb.sum(axis=0)
-            blo[out] = grid[np.argmax(cdf >= q_lo - 1e-12, axis=0)]
-            bhi[out] = grid[np.argmax(cdf >= q_hi - 1e-12, axis=0)]
-
-        stats(running[:, None], slice(0, 1))
         for start in range(0, N, block):
             stop = min(N, start + block)
             ll = pair_log_likelihoods(self.log_policy, states[start:stop], actions[start:stop])
@@ -316,6 +272,14 @@ class DiscreteBelief:
                     f"episode {trajs.episode[t]} step {trajs.step[t]}: action {actions[t]} in "
                     f"state {states[t]} is impossible under every hypothesis"
                 )
-            stats(cum, slice(start + 1, stop + 1))
+            parts.append(self._trace_part(cum, truth))
             running = cum[:, -1]
-        return Trace(mb, mt, ent, tp, gp, blo, bhi)
+        return Trace(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+
+    def _trace_part(self, logw: np.ndarray, truth: int | None) -> Trace:
+        """The :class:`Trace` rows of log-weights ``logw [H, n]`` (one column per point in time)."""
+        s = summarise(logw, self.hypotheses)
+        betas = self.hypotheses.betas
+        tp = s.probabilities[truth] if truth is not None else np.full(logw.shape[1], np.nan)
+        lo, hi = (beta_quantile(betas, s.beta_marginal, q) for q in TRACE_BAND)
+        return Trace(s.mean_beta, s.mean_theta, s.entropy, tp, s.group_probabilities.T, lo, hi)

@@ -26,9 +26,10 @@ import numpy as np
 
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
-from ..hypotheses import GROUP_NAMES, HypothesisSet, expertise_group
+from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP
 from .belief import DiscreteBelief
+from .posterior import summarise
 
 
 class GroupProbabilities(dict):
@@ -195,14 +196,6 @@ class OnlineEstimator:
         # [S, A, H]: the H log-probabilities of one (s, a) lie next to each other.
         self._table = np.ascontiguousarray(np.transpose(lp, (1, 2, 0)))
         self._log_prior = base.log_prior
-        self._theta = hypotheses.theta  # [H, K]
-        self._beta = hypotheses.beta  # [H]
-        betas = hypotheses.betas
-        # β marginal as a [H] -> [n_beta] sum: hypothesis h has β index h % n_beta.
-        self._beta_index = np.tile(np.arange(hypotheses.n_beta), hypotheses.n_theta)
-        groups = np.array([expertise_group(float(b)) for b in betas])
-        self._group_of_beta = np.stack([groups == g for g in GROUP_NAMES]).astype(float)  # [3, n_beta]
-        self._betas = betas.copy()
         self._ll = np.zeros(len(hypotheses))
         self._pairs: list[tuple[int, int, int, int]] = []  # (episode, step, state, action)
         self._open = False  # the last episode can take more actions
@@ -330,30 +323,19 @@ class OnlineEstimator:
 
     # ---------------------------------------------------------------- summaries
     def _summarise(self) -> Estimate:
-        logw = self._log_prior + self._ll
-        m = logw.max()
-        w = np.exp(logw - m)
-        z = w.sum()
-        p = w / z
-        lp = logw - (m + np.log(z))
-        pb = np.bincount(self._beta_index, weights=p, minlength=len(self._betas))
-        nz = p > 0
-        ent = float(-(p[nz] @ lp[nz]))
-        g = self._group_of_beta @ pb
-        g = g / g.sum()
-        h = int(np.argmax(logw))
+        s = summarise(self._log_prior + self._ll, self.hypotheses)
+        h = int(np.argmax(s.log_probabilities))
         return Estimate(
             n_observed=len(self._pairs),
-            beta_hat=float(self._betas @ pb),
-            theta_hat=p @ self._theta,
-            beta_values=self._betas,
-            beta_probabilities=pb,
-            group_probabilities=GroupProbabilities(
-                (k, float(v)) for k, v in zip(GROUP_NAMES, g, strict=True)),
-            entropy=ent,
-            map_theta=self._theta[h],
-            map_beta=float(self._beta[h]),
-            map_probability=float(p[h]),
+            beta_hat=float(s.mean_beta),
+            theta_hat=s.mean_theta,
+            beta_values=self.hypotheses.betas.copy(),
+            beta_probabilities=s.beta_marginal,
+            group_probabilities=GroupProbabilities(s.groups()),
+            entropy=float(s.entropy),
+            map_theta=self.hypotheses.theta[h],
+            map_beta=float(self.hypotheses.beta[h]),
+            map_probability=float(s.probabilities[h]),
             map_index=h,
         )
 
