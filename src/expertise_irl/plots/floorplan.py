@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.colors import to_rgb
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Patch, Rectangle
+from matplotlib.patches import Circle, Patch
 
 from ..errors import InputError
 from ..worlds.grid import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
@@ -54,33 +53,12 @@ def draw_floor_plan(ax: Axes, plan: WarehouseMap, *, show_grid: bool = True,
                     legend: bool = True) -> Axes:
     """Draw a floor plan: cells, green road arrows (gid ``"road-arrows"``), goals, starts."""
     g = plan.grid
-    h, w = g.shape
-    rgb = np.zeros((h, w, 3))
-    for ch, col in CELL_COLORS.items():
-        rgb[g == ch] = to_rgb(col)
-    ax.imshow(rgb, extent=(-0.5, w - 0.5, h - 0.5, -0.5), origin="upper",
-              interpolation="nearest", zorder=0)
-    if show_grid and max(h, w) <= 80:
-        ax.vlines(np.arange(w + 1) - 0.5, -0.5, h - 0.5, colors=render.GRID_COLOR, lw=0.3, zorder=1)
-        ax.hlines(np.arange(h + 1) - 0.5, -0.5, w - 0.5, colors=render.GRID_COLOR, lw=0.3, zorder=1)
-    road = np.isin(g, tuple(render.ROAD_VECTORS))
-    if road.any():
-        rows, cols = np.nonzero(road)
-        uv = np.array([render.ROAD_VECTORS[c] for c in g[rows, cols]], dtype=float)
-        q = ax.quiver(cols, rows, uv[:, 0], uv[:, 1], angles="xy", scale_units="xy", scale=1 / 0.6,
-                      pivot="middle", color=ROAD_COLOR, width=0.1, units="xy", headwidth=3.2,
-                      headlength=3.0, headaxislength=2.7, zorder=3)
-        q.set_gid(render.ROAD_ARROWS_GID)
-    for row, col in np.argwhere(g == START):
-        ax.add_patch(Rectangle((col - 0.3, row - 0.3), 0.6, 0.6, fill=False, ec="#6b6b6b", lw=0.9,
-                               zorder=3, gid="start"))
+    render.draw_cells(ax, g, CELL_COLORS, grid_lw=0.3 if show_grid and max(g.shape) <= 80 else None)
+    render.draw_road_arrows(ax, g, color=ROAD_COLOR, length=0.6, width=0.1)
+    render.draw_starts(ax, g, 0.6)
     for row, col in np.argwhere(g == GOAL):
         ax.add_patch(Circle((col, row), 0.4, fc=GOAL_FILL, ec="#7a5200", lw=0.8, zorder=2, gid="goal"))
-    ax.set_xlim(-0.5, w - 0.5)
-    ax.set_ylim(h - 0.5, -0.5)
-    ax.set_aspect("equal")
-    ax.set_xticks([])
-    ax.set_yticks([])
+    render.frame_cells(ax, g)
     if legend:
         handles = floor_plan_legend_handles(plan)
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(handles),

@@ -87,36 +87,12 @@ def draw_map(ax: Axes, zone_map: ZoneMap, *, show_grid: bool = True, legend: boo
         ``"road-arrows"`` (``X, Y`` cell centres, ``U, V`` unit directions, V > 0 = down).
     """
     g = zone_map.grid
-    h, w = g.shape
-    rgb = np.zeros((h, w, 3))
-    for ch, col in ZONE_COLORS.items():
-        rgb[g == ch] = to_rgb(col)
-    ax.imshow(rgb, extent=(-0.5, w - 0.5, h - 0.5, -0.5), origin="upper",
-              interpolation="nearest", zorder=0)
-    if show_grid:
-        ax.vlines(np.arange(w + 1) - 0.5, -0.5, h - 0.5, colors=GRID_COLOR, lw=0.4, zorder=1)
-        ax.hlines(np.arange(h + 1) - 0.5, -0.5, w - 0.5, colors=GRID_COLOR, lw=0.4, zorder=1)
-
-    road = np.isin(g, tuple(ROAD_VECTORS))
-    if road.any():
-        ys, xs = np.nonzero(road)
-        uv = np.array([ROAD_VECTORS[c] for c in g[ys, xs]], dtype=float)
-        q = ax.quiver(xs, ys, uv[:, 0], uv[:, 1], angles="xy", scale_units="xy", scale=1 / 0.55,
-                      pivot="middle", color=ARROW_COLOR, width=0.09, units="xy",
-                      headwidth=3.2, headlength=3.0, headaxislength=2.7, zorder=3)
-        q.set_gid(ROAD_ARROWS_GID)
-
-    for y, x in np.argwhere(g == START):
-        ax.add_patch(Rectangle((x - 0.27, y - 0.27), 0.54, 0.54, fill=False, ec="#6b6b6b",
-                               lw=0.9, zorder=3, gid="start"))
+    draw_cells(ax, g, ZONE_COLORS, grid_lw=0.4 if show_grid else None)
+    draw_road_arrows(ax, g, color=ARROW_COLOR, length=0.55, width=0.09)
+    draw_starts(ax, g, 0.54)
     for y, x in np.argwhere(g == GOAL):
         ax.add_patch(Circle((x, y), 0.36, fc=GOAL_COLOR, ec="white", lw=0.8, zorder=6, gid="goal"))
-
-    ax.set_xlim(-0.5, w - 0.5)
-    ax.set_ylim(h - 0.5, -0.5)
-    ax.set_aspect("equal")
-    ax.set_xticks([])
-    ax.set_yticks([])
+    frame_cells(ax, g)
     for sp in ax.spines.values():
         sp.set_linewidth(0.6)
         sp.set_color("#7a7a7a")
@@ -126,6 +102,50 @@ def draw_map(ax: Axes, zone_map: ZoneMap, *, show_grid: bool = True, legend: boo
                   ncol=min(len(handles), 4), frameon=False, fontsize=7.5, handlelength=1.2,
                   handleheight=1.0, columnspacing=1.0, borderaxespad=0.2)
     return ax
+
+
+def draw_cells(ax: Axes, g: np.ndarray, colors: dict[str, str], *, grid_lw: float | None) -> None:
+    """Fill each cell of ``g`` (``[rows, cols]`` characters) with its colour in ``colors`` and,
+    unless ``grid_lw`` is None, draw lines that wide between cells."""
+    h, w = g.shape
+    rgb = np.zeros((h, w, 3))
+    for ch, col in colors.items():
+        rgb[g == ch] = to_rgb(col)
+    ax.imshow(rgb, extent=(-0.5, w - 0.5, h - 0.5, -0.5), origin="upper",
+              interpolation="nearest", zorder=0)
+    if grid_lw is not None:
+        ax.vlines(np.arange(w + 1) - 0.5, -0.5, h - 0.5, colors=GRID_COLOR, lw=grid_lw, zorder=1)
+        ax.hlines(np.arange(h + 1) - 0.5, -0.5, w - 0.5, colors=GRID_COLOR, lw=grid_lw, zorder=1)
+
+
+def draw_road_arrows(ax: Axes, g: np.ndarray, *, color: str, length: float, width: float) -> None:
+    """An arrow ``length`` cells long along each road cell's direction: one quiver with gid
+    :data:`ROAD_ARROWS_GID` (``X, Y`` cell centres, ``U, V`` unit directions, V > 0 = down)."""
+    road = np.isin(g, tuple(ROAD_VECTORS))
+    if road.any():
+        ys, xs = np.nonzero(road)
+        uv = np.array([ROAD_VECTORS[c] for c in g[ys, xs]], dtype=float)
+        q = ax.quiver(xs, ys, uv[:, 0], uv[:, 1], angles="xy", scale_units="xy", scale=1 / length,
+                      pivot="middle", color=color, width=width, units="xy",
+                      headwidth=3.2, headlength=3.0, headaxislength=2.7, zorder=3)
+        q.set_gid(ROAD_ARROWS_GID)
+
+
+def draw_starts(ax: Axes, g: np.ndarray, side: float) -> None:
+    """A grey square ``side`` cells wide (gid ``"start"``) on each start cell."""
+    for y, x in np.argwhere(g == START):
+        ax.add_patch(Rectangle((x - side / 2, y - side / 2), side, side, fill=False, ec="#6b6b6b",
+                               lw=0.9, zorder=3, gid="start"))
+
+
+def frame_cells(ax: Axes, g: np.ndarray) -> None:
+    """Limits on the cells of ``g`` (row 0 on top), equal aspect, no ticks."""
+    h, w = g.shape
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
 
 
 def map_legend_handles(zone_map: ZoneMap) -> list:
