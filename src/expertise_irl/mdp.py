@@ -35,6 +35,88 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _checked_tables(src: str, next_state, features, terminal) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``next_state``, ``features`` (float64, zero where unavailable) and ``terminal`` (bool) checked
+    for shape, dtype, indices and finiteness, with at least one terminal and one other state."""
+    ns = np.asarray(next_state)
+    if ns.ndim != 2:
+        raise InputError(f"{src}: next_state must have shape [S, A], got {ns.shape}")
+    if not np.issubdtype(ns.dtype, np.integer):
+        raise InputError(f"{src}: next_state must be integer, got dtype {ns.dtype}")
+    S, A = ns.shape
+    if S == 0 or A == 0:
+        raise InputError(f"{src}: next_state must be non-empty, got shape {ns.shape}")
+    feats = np.asarray(features)
+    if feats.ndim != 3 or feats.shape[:2] != (S, A):
+        raise InputError(
+            f"{src}: features must have shape [S, A, K] = [{S}, {A}, K], got {feats.shape}"
+        )
+    if feats.shape[2] == 0:
+        raise InputError(f"{src}: features must have at least one feature (K >= 1)")
+    if not np.issubdtype(feats.dtype, np.number) or np.iscomplexobj(feats):
+        raise InputError(f"{src}: features must be real numbers, got dtype {feats.dtype}")
+    term = np.asarray(terminal)
+    if term.shape != (S,):
+        raise InputError(f"{src}: terminal must have shape [S] = [{S}], got {term.shape}")
+    if term.dtype != bool:
+        if not np.all(np.isin(term, (0, 1))):
+            raise InputError(f"{src}: terminal must be boolean (0/1)")
+        term = term.astype(bool)
+    bad = (ns < -1) | (ns >= S)
+    if bad.any():
+        s, a = np.argwhere(bad)[0]
+        raise InputError(
+            f"{src}: next_state[{s}, {a}] = {ns[s, a]} is not a state index in [0, {S}) or -1"
+        )
+    avail = ns >= 0
+    feats = feats.astype(np.float64)
+    nonfinite = ~np.isfinite(feats) & avail[:, :, None]
+    if nonfinite.any():
+        s, a, k = np.argwhere(nonfinite)[0]
+        raise InputError(f"{src}: features[{s}, {a}, {k}] is {feats[s, a, k]} (must be finite)")
+    # Unavailable entries never matter; zero them so they cannot leak NaN into sums.
+    feats = np.where(avail[:, :, None], feats, 0.0)
+    if not term.any():
+        raise InputError(f"{src}: the MDP has no terminal (goal) state")
+    if term.all():
+        raise InputError(f"{src}: every state is terminal; there is no state to act in")
+    return ns, feats, term
+
+
+def _checked_starts(src: str, starts, term: np.ndarray) -> np.ndarray | None:
+    """``start_states`` as frozen int64 (None for none), each a non-terminal state."""
+    if starts is None:
+        return None
+    S = term.shape[0]
+    starts = np.asarray(starts)
+    if starts.ndim != 1 or not np.issubdtype(starts.dtype, np.integer):
+        raise InputError(f"{src}: start_states must be a 1-D integer array")
+    if ((starts < 0) | (starts >= S)).any():
+        raise InputError(f"{src}: start_states contains an index outside [0, {S})")
+    if term[starts].any():
+        raise InputError(f"{src}: start_states contains a terminal state")
+    return _frozen(starts.astype(np.int64)) if starts.size else None
+
+
+def _checked_layout(src: str, xy, heading, S: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``state_xy`` and ``state_heading`` as frozen int64 arrays (None where not given)."""
+    if xy is not None:
+        xy = np.asarray(xy)
+        if xy.shape != (S, 2) or not np.issubdtype(xy.dtype, np.integer):
+            raise InputError(f"{src}: state_xy must be an integer array of shape [{S}, 2]")
+        xy = _frozen(xy.astype(np.int64))
+    if heading is not None:
+        heading = np.asarray(heading)
+        if xy is None:
+            raise InputError(f"{src}: state_heading needs the cell of each state (state_xy)")
+        if heading.shape != (S,) or not np.issubdtype(heading.dtype, np.integer) or not np.isin(
+                heading, (0, 1)).all():
+            raise InputError(f"{src}: state_heading must be an integer array of shape [{S}] "
+                             "holding 0 (horizontal) or 1 (vertical)")
+        heading = _frozen(heading.astype(np.int64))
+    return xy, heading
+
+
 @dataclass(frozen=True, eq=False)
 class TabularMDP:
     """A validated deterministic tabular MDP.
@@ -68,49 +150,9 @@ class TabularMDP:
 
     def __post_init__(self) -> None:
         src = self.source
-        ns = np.asarray(self.next_state)
-        if ns.ndim != 2:
-            raise InputError(f"{src}: next_state must have shape [S, A], got {ns.shape}")
-        if not np.issubdtype(ns.dtype, np.integer):
-            raise InputError(f"{src}: next_state must be integer, got dtype {ns.dtype}")
-        S, A = ns.shape
-        if S == 0 or A == 0:
-            raise InputError(f"{src}: next_state must be non-empty, got shape {ns.shape}")
-        feats = np.asarray(self.features)
-        if feats.ndim != 3 or feats.shape[:2] != (S, A):
-            raise InputError(
-                f"{src}: features must have shape [S, A, K] = [{S}, {A}, K], got {feats.shape}"
-            )
-        if feats.shape[2] == 0:
-            raise InputError(f"{src}: features must have at least one feature (K >= 1)")
-        if not np.issubdtype(feats.dtype, np.number) or np.iscomplexobj(feats):
-            raise InputError(f"{src}: features must be real numbers, got dtype {feats.dtype}")
-        term = np.asarray(self.terminal)
-        if term.shape != (S,):
-            raise InputError(f"{src}: terminal must have shape [S] = [{S}], got {term.shape}")
-        if term.dtype != bool:
-            if not np.all(np.isin(term, (0, 1))):
-                raise InputError(f"{src}: terminal must be boolean (0/1)")
-            term = term.astype(bool)
-        bad = (ns < -1) | (ns >= S)
-        if bad.any():
-            s, a = np.argwhere(bad)[0]
-            raise InputError(
-                f"{src}: next_state[{s}, {a}] = {ns[s, a]} is not a state index in [0, {S}) or -1"
-            )
-        avail = ns >= 0
-        feats = feats.astype(np.float64)
-        nonfinite = ~np.isfinite(feats) & avail[:, :, None]
-        if nonfinite.any():
-            s, a, k = np.argwhere(nonfinite)[0]
-            raise InputError(f"{src}: features[{s}, {a}, {k}] is {feats[s, a, k]} (must be finite)")
-        # Unavailable entries never matter; zero them so they cannot leak NaN into sums.
-        feats = np.where(avail[:, :, None], feats, 0.0)
-        if not term.any():
-            raise InputError(f"{src}: the MDP has no terminal (goal) state")
-        if term.all():
-            raise InputError(f"{src}: every state is terminal; there is no state to act in")
-        stuck = ~term & ~avail.any(axis=1)
+        ns, feats, term = _checked_tables(src, self.next_state, self.features, self.terminal)
+        S = ns.shape[0]
+        stuck = ~term & ~(ns >= 0).any(axis=1)
         if stuck.any():
             s = int(np.flatnonzero(stuck)[0])
             raise InputError(f"{src}: state {s}{self._cell(s)} has no available action")
@@ -121,32 +163,8 @@ class TabularMDP:
         names = tuple(str(n) for n in self.feature_names) or tuple(f"f{k}" for k in range(K))
         if len(names) != K:
             raise InputError(f"{src}: {len(names)} feature names for {K} features")
-        starts = self.start_states
-        if starts is not None:
-            starts = np.asarray(starts)
-            if starts.ndim != 1 or not np.issubdtype(starts.dtype, np.integer):
-                raise InputError(f"{src}: start_states must be a 1-D integer array")
-            if ((starts < 0) | (starts >= S)).any():
-                raise InputError(f"{src}: start_states contains an index outside [0, {S})")
-            if term[starts].any():
-                raise InputError(f"{src}: start_states contains a terminal state")
-            starts = _frozen(starts.astype(np.int64)) if starts.size else None
-        xy = self.state_xy
-        if xy is not None:
-            xy = np.asarray(xy)
-            if xy.shape != (S, 2) or not np.issubdtype(xy.dtype, np.integer):
-                raise InputError(f"{src}: state_xy must be an integer array of shape [{S}, 2]")
-            xy = _frozen(xy.astype(np.int64))
-        heading = self.state_heading
-        if heading is not None:
-            heading = np.asarray(heading)
-            if xy is None:
-                raise InputError(f"{src}: state_heading needs the cell of each state (state_xy)")
-            if heading.shape != (S,) or not np.issubdtype(heading.dtype, np.integer) or not np.isin(
-                    heading, (0, 1)).all():
-                raise InputError(f"{src}: state_heading must be an integer array of shape [{S}] "
-                                 "holding 0 (horizontal) or 1 (vertical)")
-            heading = _frozen(heading.astype(np.int64))
+        starts = _checked_starts(src, self.start_states, term)
+        xy, heading = _checked_layout(src, self.state_xy, self.state_heading, S)
         set_ = object.__setattr__
         set_(self, "next_state", _frozen(ns.astype(np.int64)))
         set_(self, "features", _frozen(feats))
