@@ -191,6 +191,14 @@ def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
         trajs = Trajectories(ep, step, v[:, 2], v[:, 3])
         validate_rows(trajs, mdp, path, lines)
         return trajs
+    return _grid_pairs(path, mdp, v, lines, given_heading)
+
+
+def _grid_pairs(path: str | Path, mdp: TabularMDP, v: np.ndarray, lines: np.ndarray,
+                given_heading: np.ndarray | None) -> Trajectories:
+    """The pairs of a grid file's rows ``v`` (episode, step, x, y): each row's state, checked,
+    and the move to the next row of its episode."""
+    ep, step = v[:, 0], v[:, 1]
     idx = _require_grid(mdp, path)
     _, H, W = idx.shape
     x, y = v[:, 2], v[:, 3]

@@ -120,6 +120,21 @@ def simulate(
     InputError
         Bad θ, β, ``starts``, ``max_steps``, ``n_episodes`` or ``log_policy``.
     """
+    lp = _policy(mdp, theta, beta, log_policy, model)
+    st = check_start_states(mdp, starts)
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) or n_episodes < 0:
+        raise InputError(f"n_episodes must be an integer >= 0, got {n_episodes!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise InputError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    if not isinstance(rng, np.random.Generator):
+        if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
+            raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
+        rng = np.random.default_rng(int(rng))
+    return _walk(mdp, _policy_cdf(lp), st, int(n_episodes), int(max_steps), rng)
+
+
+def _policy(mdp: TabularMDP, theta, beta, log_policy, model: str) -> np.ndarray:
+    """The checked ``[S, A]`` log-policy: ``log_policy`` if given, else that of (θ, β) under ``model``."""
     if log_policy is None:
         if theta is None or beta is None:
             raise InputError("simulate needs theta and beta (or a log_policy)")
@@ -128,26 +143,26 @@ def simulate(
     else:
         if theta is not None or beta is not None:
             _check_hypothesis(mdp, theta, beta)
-    lp = _check_log_policy(mdp, log_policy)
-    st = check_start_states(mdp, starts)
-    if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) or n_episodes < 0:
-        raise InputError(f"n_episodes must be an integer >= 0, got {n_episodes!r}")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
-        raise InputError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    return _check_log_policy(mdp, log_policy)
 
-    if not isinstance(rng, np.random.Generator):
-        if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
-            raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
-        rng = np.random.default_rng(int(rng))
+
+def _policy_cdf(lp: np.ndarray) -> np.ndarray:
+    """``[S, A]`` cumulative policy, each non-terminal row ending at exactly 1.0."""
     cdf = np.cumsum(np.exp(lp), axis=1)
     total = cdf[:, -1:]
     # Dividing by the row total makes the last entry exactly 1.0, so u in [0, 1) never
     # runs past the last action with positive probability. Terminal rows are never used.
-    cdf = np.where(total > 0, cdf / np.where(total > 0, total, 1.0), 1.0)
-    current = st[rng.integers(0, st.size, size=int(n_episodes))]
-    active = np.arange(int(n_episodes), dtype=np.int64)
+    return np.where(total > 0, cdf / np.where(total > 0, total, 1.0), 1.0)
+
+
+def _walk(mdp: TabularMDP, cdf: np.ndarray, st: np.ndarray, n_episodes: int, max_steps: int,
+          rng: np.random.Generator) -> Trajectories:
+    """``n_episodes`` episodes from starts drawn from ``st``, advanced together by inverse-CDF
+    draws (one start draw for all, then one uniform per active episode and step)."""
+    current = st[rng.integers(0, st.size, size=n_episodes)]
+    active = np.arange(n_episodes, dtype=np.int64)
     chunks: list[tuple[np.ndarray, ...]] = []
-    for t in range(int(max_steps)):
+    for t in range(max_steps):
         if active.size == 0:
             break
         s = current[active]
