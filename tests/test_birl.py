@@ -12,17 +12,13 @@ import math
 
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 from reference_solver import soft_value_iteration
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
-from expertise_irl.inference.birl import (
-    _count_table,
-    _uniform_lattice_point,
-    extended_birl,
-    paper_log_prior,
-)
+from expertise_irl.inference.birl import extended_birl, paper_log_prior
+from expertise_irl.inference.birl_kernel import _count_table, _uniform_lattice_point
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.metrics import cosine_similarity
 from expertise_irl.worlds.zones import load_bundled

@@ -104,13 +104,20 @@ from ..demos.trajectories import Trajectories, validate
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
-from ..planning.soft_vi import solve
+from .birl_kernel import (
+    GRID_RTOL,
+    Chain,
+    Lattice,
+    LatticePosterior,
+    draw_moves,
+    initial_state,
+    make_lattice,
+    sample_chain,
+)
 from .priors import DEFAULT_PRIOR, get_prior, log_prior_numpy
 
 VARIANTS = ("box", "simplex")
 MOVES = ("both", "either")
-_START_TRIES = 1000
-_GRID_RTOL = 1e-9
 
 LogPrior = Callable[[np.ndarray, float], float]
 
@@ -181,41 +188,6 @@ class BIRLResult:
         return self.n_sweeps / self.n_solves if self.n_solves else 0.0
 
 
-# ----------------------------------------------------------------------------- lattice
-def _grid_count(span: float, step: float, message: str) -> int:
-    """``span / step`` as an integer >= 1, or InputError(message) if it is not one."""
-    n = span / step
-    if abs(n - round(n)) > _GRID_RTOL * max(1.0, n) or round(n) < 1:
-        raise InputError(message)
-    return round(n)
-
-
-def _count_table(K: int, M: int, L: int, exact: bool) -> list[list[int]]:
-    """``c[k][r]``: integer vectors (m_k..m_{K−1}) in {0..M} with sum == r (exact) or <= r."""
-    c = [[0] * (L + 1) for _ in range(K + 1)]
-    c[K] = [1] * (L + 1) if not exact else [1] + [0] * L
-    for k in range(K - 1, -1, -1):
-        prefix = [0]
-        for x in c[k + 1]:
-            prefix.append(prefix[-1] + x)
-        c[k] = [prefix[r + 1] - prefix[max(0, r - M)] for r in range(L + 1)]
-    return c
-
-
-def _uniform_lattice_point(rng: np.random.Generator, K: int, M: int, L: int, exact: bool) -> np.ndarray:
-    """Exactly uniform m ∈ {0..M}^K with Σm == L (exact) or Σm <= L."""
-    c = _count_table(K, M, L, exact)
-    m = np.zeros(K, dtype=np.int64)
-    r = L
-    for k in range(K):
-        w = [c[k + 1][r - v] for v in range(min(M, r) + 1)]
-        total = sum(w)
-        v = int(rng.choice(len(w), p=np.array([x / total for x in w])))
-        m[k] = v
-        r -= v
-    return m
-
-
 # ----------------------------------------------------------------------------- checks
 def _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam, variant, moves,
                 log_prior, burn_in, rng, tol) -> np.random.Generator:
@@ -237,7 +209,7 @@ def _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam
         raise InputError(f"beta_range must be a pair (low, high), got {beta_range!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         raise InputError(f"beta_range must satisfy 0 < low < high (finite), got {beta_range!r}")
-    if lo + beta_step > hi * (1 + _GRID_RTOL):
+    if lo + beta_step > hi * (1 + GRID_RTOL):
         raise InputError(f"beta_step = {beta_step:g} leaves a single β in beta_range {beta_range!r}")
     if variant not in VARIANTS:
         raise InputError(f"variant must be one of {', '.join(VARIANTS)}, got {variant!r}")
@@ -312,146 +284,30 @@ def extended_birl(
 
         def log_prior(theta, beta, _name=prior, _range=b_range):
             return log_prior_numpy(_name, theta, beta, _range)
-    prior_fn = log_prior
     if moves is None:
         moves = "both" if variant == "box" else "either"
-    K = mdp.n_features
-    n_iter = int(n_iter)
-    delta, beta_step = float(delta), float(beta_step)
-    b_lo, b_hi = (float(b) for b in beta_range)
-    n_beta = math.floor((b_hi - b_lo) / beta_step * (1 + _GRID_RTOL)) + 1
-    if variant == "simplex":
-        L = _grid_count(1.0, delta, f"delta must divide 1 in the simplex variant, got {delta:g}")
-        M = L
-    else:
-        M = _grid_count(float(theta_max), delta,
-                        f"theta_max must be an integer multiple of delta = {delta:g}, got {theta_max:g}")
-        L = min(K * M, math.floor(lam / delta * (1 + _GRID_RTOL)))
-        if L < 1:
-            raise InputError(f"lam = {lam:g} must be >= delta = {delta:g} (else only θ = 0 fits)")
+    lattice = make_lattice(mdp.n_features, variant, delta, beta_step, theta_max, beta_range, lam)
+    target = LatticePosterior(mdp, trajs, lattice, log_prior, tol=tol, model=model, warm_start=warm_start,
+                              cache=cache)
+    start = initial_state(rng, target)
+    chain = sample_chain(start, target, moves, draw_moves(rng, lattice, int(n_iter)), progress)
+    return _summarise(chain, lattice, target, moves, burn_in)
 
-    # Demonstrations as counts N[s, a] over the observed pairs.
-    A = mdp.n_actions
-    flat, counts = np.unique(trajs.state * A + trajs.action, return_counts=True)
-    pair_s, pair_a, counts = flat // A, flat % A, counts.astype(np.float64)
 
-    def theta_of(m: np.ndarray) -> np.ndarray:
-        return m * delta
-
-    def beta_of(j: int) -> float:
-        return b_lo + j * beta_step
-
-    def in_bounds(m: np.ndarray, j: int) -> bool:
-        if not 0 <= j < n_beta or m.min() < 0:
-            return False
-        if variant == "simplex":
-            return True  # transfers keep Σm = L; m_i <= L follows
-        s = int(m.sum())
-        return m.max() <= M and 0 < s <= L
-
-    known: dict[tuple, float] = {}
-    stats = {"solves": 0, "sweeps": 0, "hits": 0}
-    warm: dict = {"v": None, "beta": 1.0}  # value function (reward units) and its β, for warm starts
-
-    def log_lik(m: np.ndarray, j: int) -> tuple[float, np.ndarray | None]:
-        """log P(Ξ | θ, β) and the value function it was solved with (None if cached)."""
-        key = (*m.tolist(), j)
-        if cache and key in known:
-            stats["hits"] += 1
-            return known[key], None
-        b = beta_of(j)
-        v0 = warm["v"][None] * (b / warm["beta"]) if warm_start and warm["v"] is not None else None
-        sol = solve(mdp, theta_of(m), b, tol=tol, v_init=v0, model=model)
-        stats["solves"] += 1
-        stats["sweeps"] += int(sol.iterations[0])
-        ll = float(np.sum(counts * sol.log_policy[0, pair_s, pair_a]))
-        if cache:
-            known[key] = ll
-        return ll, sol.value[0]
-
-    def log_prior_at(m: np.ndarray, j: int) -> float:
-        lp = float(prior_fn(theta_of(m), beta_of(j)))
-        if math.isnan(lp) or lp == math.inf:
-            raise InputError(f"log_prior returned {lp} at theta={theta_of(m).tolist()}, beta={beta_of(j):g}")
-        return lp
-
-    # Start: uniform over the lattice points (θ = 0 excluded in the box).
-    for _ in range(_START_TRIES):
-        m = _uniform_lattice_point(rng, K, M, L, exact=variant == "simplex")
-        while m.sum() == 0:
-            m = _uniform_lattice_point(rng, K, M, L, exact=False)
-        j = int(rng.integers(n_beta))
-        lp_prior = log_prior_at(m, j)
-        if lp_prior > -math.inf:
-            break
-    else:
-        raise InputError(f"log_prior is -inf at {_START_TRIES} random lattice points; no start found")
-    ll, v = log_lik(m, j)
-    warm.update(v=v, beta=beta_of(j))
-    cur = ll + lp_prior
-    best = (cur, m.copy(), j)
-
-    # All random numbers up front: reproducible and cheap.
-    if variant == "simplex":
-        pick = rng.integers(K * (K - 1), size=n_iter) if K > 1 else np.zeros(n_iter, np.int64)
-    else:
-        pick = rng.integers(2 * K, size=n_iter)
-    b_sign = 2 * rng.integers(2, size=n_iter) - 1
-    which = rng.integers(2, size=n_iter)  # moves="either": 0 = θ, 1 = β
-    log_u = np.log(rng.random(n_iter))
-
-    T = n_iter + 1
-    ms = np.empty((T, K), dtype=np.int64)
-    js = np.empty(T, dtype=np.int64)
-    lps = np.empty(T)
-    accepted = np.zeros(n_iter, dtype=bool)
-    ms[0], js[0], lps[0] = m, j, cur
-    n_oob = 0
-    report_every = max(1, n_iter // 100)
-    for i in range(n_iter):
-        move_theta = moves == "both" or which[i] == 0
-        move_beta = moves == "both" or which[i] == 1
-        m_new = m.copy()
-        if move_theta:
-            p = int(pick[i])
-            if variant == "simplex":
-                if K > 1:
-                    src, dst = divmod(p, K - 1)
-                    dst += dst >= src  # ordered pair (src, dst), src != dst
-                    m_new[src] -= 1
-                    m_new[dst] += 1
-            else:
-                m_new[p // 2] += 1 if p % 2 else -1
-        j_new = j + int(b_sign[i]) if move_beta else j
-        if not in_bounds(m_new, j_new):
-            n_oob += 1
-        else:
-            lp_prior = log_prior_at(m_new, j_new)
-            if lp_prior > -math.inf:
-                ll, v = log_lik(m_new, j_new)
-                new = ll + lp_prior
-                if new > best[0]:
-                    best = (new, m_new.copy(), j_new)
-                if log_u[i] < new - cur:
-                    m, j, cur = m_new, j_new, new
-                    accepted[i] = True
-                    if v is not None:
-                        warm.update(v=v, beta=beta_of(j))
-        ms[i + 1], js[i + 1], lps[i + 1] = m, j, cur
-        if progress is not None and (i + 1 == n_iter or (i + 1) % report_every == 0):
-            progress(i + 1, n_iter)
-
-    theta = ms * delta
-    beta = b_lo + js * beta_step
-    n_burn = math.floor(burn_in * T)
+def _summarise(chain: Chain, lattice: Lattice, target: LatticePosterior, moves: str, burn_in: float
+               ) -> BIRLResult:
+    """The chain in (θ, β), its acceptance, means after burn-in and its best point."""
+    theta, beta = lattice.theta(chain.m), lattice.beta(chain.j)
+    n_burn = math.floor(burn_in * len(beta))
     kt, kb = theta[n_burn:], beta[n_burn:]
     l1 = kt.sum(axis=1)
+    best_lp, best_m, best_j = chain.best
     return BIRLResult(
-        theta=theta, beta=beta, log_posterior=lps, accepted=accepted,
-        acceptance_rate=float(accepted.mean()), n_out_of_bounds=n_oob, n_burn=n_burn,
+        theta=theta, beta=beta, log_posterior=chain.log_posterior, accepted=chain.accepted,
+        acceptance_rate=float(chain.accepted.mean()), n_out_of_bounds=chain.n_out_of_bounds, n_burn=n_burn,
         mean_theta=kt.mean(axis=0), mean_beta=float(kb.mean()),
         mean_theta_normalized=(kt / l1[:, None]).mean(axis=0), mean_beta_normalized=float((kb / l1).mean()),
-        best_theta=theta_of(best[1]), best_beta=beta_of(best[2]), best_log_posterior=float(best[0]),
-        n_solves=stats["solves"], n_sweeps=stats["sweeps"], n_cache_hits=stats["hits"],
-        variant=variant, moves=moves, delta=delta, beta_step=beta_step,
+        best_theta=lattice.theta(best_m), best_beta=lattice.beta(best_j), best_log_posterior=float(best_lp),
+        n_solves=target.n_solves, n_sweeps=target.n_sweeps, n_cache_hits=target.n_cache_hits,
+        variant=lattice.variant, moves=moves, delta=lattice.delta, beta_step=lattice.beta_step,
     )
