@@ -370,7 +370,21 @@ def draw_theta_summary(
     true = None if theta_true is None else np.asarray(theta_true, dtype=float).ravel()
     if true is not None and true.shape != (K,):
         raise ValueError(f"theta_true must have {K} components, got {true.shape}")
+    _draw_theta_means(ax, th, p, names, true, absent)
+    if top <= 0:
+        return ax, None
+    if ax_top is None:
+        from mpl_toolkits.axes_grid1 import make_axes_locatable
 
+        ax_top = make_axes_locatable(ax).append_axes("bottom", size="90%", pad=0.45)
+    _draw_top_thetas(ax_top, th, p, names, true, top)
+    return ax, ax_top
+
+
+def _draw_theta_means(ax: Axes, th: np.ndarray, p: np.ndarray, names: list[str], true: np.ndarray | None,
+                      absent: Sequence[bool] | None) -> None:
+    """Bars of E[θ] (and θ*) per feature; features ``absent`` from the map greyed and hatched."""
+    K = th.shape[1]
     mean = p @ th
     x = np.arange(K)
     width = 0.38 if true is not None else 0.6
@@ -398,12 +412,10 @@ def draw_theta_summary(
     ax.legend(fontsize=7.5, frameon=False, loc="upper right")
     _tidy(ax)
 
-    if top <= 0:
-        return ax, None
-    if ax_top is None:
-        from mpl_toolkits.axes_grid1 import make_axes_locatable
 
-        ax_top = make_axes_locatable(ax).append_axes("bottom", size="90%", pad=0.45)
+def _draw_top_thetas(ax_top: Axes, th: np.ndarray, p: np.ndarray, names: list[str], true: np.ndarray | None,
+                     top: int) -> None:
+    """The ``top`` most probable θ vectors as horizontal bars, θ*'s row starred."""
     uniq, pu = _aggregate(th, p)
     order = np.argsort(-pu, kind="stable")[:top]
     labels = ["(" + " ".join(_fmt(v) for v in uniq[i]) + ")" for i in order]
@@ -425,7 +437,6 @@ def draw_theta_summary(
     ax_top.set_xlabel("probability", fontsize=8.5)
     ax_top.set_title(rf"top {len(order)} $\theta$  ({', '.join(names)})", fontsize=8.5)
     _tidy(ax_top)
-    return ax, ax_top
 
 
 def _tidy(ax: Axes) -> None:

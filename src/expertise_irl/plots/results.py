@@ -342,67 +342,17 @@ def result_figure(
     top = rows[0]
     bottom = rows[1] if trace else None
     sf_warn = rows[-1] if warnings else None
-    if draw_map:
-        sf_map, sf_post = top.subfigures(1, 2, width_ratios=[map_w, 3.0 * ncols], wspace=0.02)
-        ax_map = sf_map.add_subplot()
-        handles = draw_demos_on_map(ax_map, mdp, zone_map, trajs)
-        n = trajs.n_episodes if trajs is not None else 0
-        label = zone_map.name if zone_map is not None else Path(str(mdp.source)).name
-        ax_map.set_title(f"{label}: {n} episode{'s' if n != 1 else ''}" if trajs is not None else label,
-                         fontsize=9)
-        if handles:
-            ax_map.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=2,
-                          frameon=False, fontsize=7, handlelength=1.3, columnspacing=0.9)
-    else:
-        sf_post = top
+    sf_post = _draw_map_panel(top, map_w, 3.0 * ncols, mdp, zone_map, trajs) if draw_map else top
     axes = sf_post.subplots(nrows, ncols, squeeze=False).ravel()
     for ax in axes[K + 1:]:
         ax.axis("off")
     ax_beta, ax_th = axes[0], axes[1:K + 1]
-
-    subtitle = ""
     if method == "discrete":
-        m = doc["marginals"]
-        betas, pb = m["beta"]["values"], m["beta"]["probabilities"]
-        render.draw_beta_marginal(ax_beta, betas, pb, beta_true=beta_true)
-        ax_beta.set_title(rf"$\beta$: marginal posterior, E = {doc['beta_hat']:.3g}", fontsize=8.5)
-        ax_beta.set_ylabel("marginal prob.", fontsize=7.5)
-        ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
-        tv, tp = m["theta"]["values"], m["theta"]["probabilities"]
-        for i, ax in enumerate(ax_th):
-            v, p = theta_component_marginal(tv, tp, i)
-            draw_discrete_component(ax, v, p, names[i], mean=doc["theta_hat"][i],
-                                    true=None if theta_true is None else theta_true[i])
-        subtitle = (f"discrete set: {len(betas)} β × {len(tv)} θ; bars = marginal posterior "
-                    "probabilities; dashed = posterior mean")
+        subtitle = _draw_discrete(doc, ax_beta, ax_th, beta_true, theta_true)
     elif method in SAMPLED:
-        chain, beta, theta = load_samples(doc, source)
-        ci = doc.get("credible_intervals") if isinstance(doc.get("credible_intervals"), dict) else {}
-        mp = doc.get("map") if isinstance(doc.get("map"), dict) else {}
-        b_int = ci.get("beta") if _valid_interval(ci.get("beta")) else None
-        draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=doc["beta_hat"],
-                     point=mp.get("beta") if is_number(mp.get("beta")) else None, true=beta_true)
-        ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
-        t_ints = ci.get("theta") if isinstance(ci.get("theta"), list) and len(ci.get("theta")) == K else None
-        mp_t = mp.get("theta") if isinstance(mp.get("theta"), list) and len(mp.get("theta")) == K else None
-        for i, ax in enumerate(ax_th):
-            draw_sampled(ax, theta[:, i], rf"$\theta$ {names[i]}",
-                         interval=t_ints[i] if t_ints and _valid_interval(t_ints[i]) else None,
-                         mean=doc["theta_hat"][i], point=None if mp_t is None else mp_t[i],
-                         true=None if theta_true is None else theta_true[i])
-        n_chains = len(np.unique(chain))
-        few = " (too few to show a shape)" if len(beta) < 50 else ""
-        subtitle = (f"{len(beta)} draw{'s' if len(beta) != 1 else ''}{few} from {n_chains} "
-                    f"chain{'s' if n_chains != 1 else ''}; shaded = 90% credible interval; "
-                    "dashed = posterior mean; ▲ = best draw")
+        subtitle = _draw_samples(doc, source, ax_beta, ax_th, beta_true, theta_true)
     else:  # map: a point, no posterior
-        draw_point(ax_beta, doc["beta_hat"], r"$\hat\beta$", lo=0.005, hi=20, log=True)
-        ax_beta.set_xlabel(r"$\beta$ (log scale; low = expert)", fontsize=7.5)
-        hi = max(1.0, max(doc["theta_hat"]) * 1.1)
-        for i, ax in enumerate(ax_th):
-            draw_point(ax, doc["theta_hat"][i], rf"$\hat\theta$ {names[i]}", lo=-0.02, hi=hi)
-        subtitle = "MAP optimum only: this method gives a point, not a posterior"
-
+        subtitle = _draw_optimum(doc, ax_beta, ax_th)
     if bottom is not None:
         axs = bottom.subplots(3, 1, sharex=True, height_ratios=[1.3, 1.0, 0.8])
         betas = doc["marginals"]["beta"]["values"]
@@ -410,19 +360,99 @@ def result_figure(
 
     if beta_true is not None or theta_true is not None:
         subtitle += "; red = the truth (θ*, β*)"
+    fig.suptitle(_title(doc, source, subtitle), fontsize=10)
+    if sf_warn is not None:
+        _draw_warnings(sf_warn, warnings)
+    return fig
+
+
+def _title(doc: dict[str, Any], source: Path, subtitle: str) -> str:
+    """The figure's title: file, method, data, β̂ and its group; then ``subtitle``."""
     data = doc.get("data") if isinstance(doc.get("data"), dict) else {}
     what = ""
     if is_number(data.get("episodes")) and is_number(data.get("actions")):
         what = f", {int(data['episodes'])} episodes, {int(data['actions'])} actions"
-    fig.suptitle(f"{source.name}: {method}{what}; β̂ = {doc['beta_hat']:.3g} "
-                 f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}", fontsize=10)
-    if sf_warn is not None:
-        shown = [w if len(w) <= 160 else w[:157] + "…" for w in warnings[:3]]
-        more = f"\n… and {len(warnings) - 3} more" if len(warnings) > 3 else ""
-        sf_warn.text(0.5, 0.5, "\n".join(f"warning: {w}" for w in shown) + more
-                     + "\n(all in the result's diagnostics.warnings)", ha="center", va="center",
-                     fontsize=8.5, color="#b02a1a", gid="warnings")
-    return fig
+    return (f"{source.name}: {doc['method']}{what}; β̂ = {doc['beta_hat']:.3g} "
+            f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}")
+
+
+def _draw_warnings(sf_warn, warnings: list[str]) -> None:
+    """The first three warnings (each cut to 160 characters) in red, and how many more there are."""
+    shown = [w if len(w) <= 160 else w[:157] + "…" for w in warnings[:3]]
+    more = f"\n… and {len(warnings) - 3} more" if len(warnings) > 3 else ""
+    sf_warn.text(0.5, 0.5, "\n".join(f"warning: {w}" for w in shown) + more
+                 + "\n(all in the result's diagnostics.warnings)", ha="center", va="center",
+                 fontsize=8.5, color="#b02a1a", gid="warnings")
+
+
+def _draw_map_panel(top, map_w: float, post_w: float, mdp: TabularMDP, zone_map: ZoneMap | None,
+                    trajs: Trajectories | None):
+    """The map and demonstrations in a left subfigure of ``top``; the right one, for the posterior."""
+    sf_map, sf_post = top.subfigures(1, 2, width_ratios=[map_w, post_w], wspace=0.02)
+    ax_map = sf_map.add_subplot()
+    handles = draw_demos_on_map(ax_map, mdp, zone_map, trajs)
+    n = trajs.n_episodes if trajs is not None else 0
+    label = zone_map.name if zone_map is not None else Path(str(mdp.source)).name
+    ax_map.set_title(f"{label}: {n} episode{'s' if n != 1 else ''}" if trajs is not None else label,
+                     fontsize=9)
+    if handles:
+        ax_map.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=2,
+                      frameon=False, fontsize=7, handlelength=1.3, columnspacing=0.9)
+    return sf_post
+
+
+def _draw_discrete(doc: dict[str, Any], ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
+    """Marginal posteriors of a discrete-set result; the subtitle that explains them."""
+    names = doc["feature_names"]
+    m = doc["marginals"]
+    betas, pb = m["beta"]["values"], m["beta"]["probabilities"]
+    render.draw_beta_marginal(ax_beta, betas, pb, beta_true=beta_true)
+    ax_beta.set_title(rf"$\beta$: marginal posterior, E = {doc['beta_hat']:.3g}", fontsize=8.5)
+    ax_beta.set_ylabel("marginal prob.", fontsize=7.5)
+    ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
+    tv, tp = m["theta"]["values"], m["theta"]["probabilities"]
+    for i, ax in enumerate(ax_th):
+        v, p = theta_component_marginal(tv, tp, i)
+        draw_discrete_component(ax, v, p, names[i], mean=doc["theta_hat"][i],
+                                true=None if theta_true is None else theta_true[i])
+    return (f"discrete set: {len(betas)} β × {len(tv)} θ; bars = marginal posterior "
+            "probabilities; dashed = posterior mean")
+
+
+def _draw_samples(doc: dict[str, Any], source: Path, ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
+    """Histograms of a sampled result's draws (from the samples CSV beside ``source``); the subtitle."""
+    names = doc["feature_names"]
+    K = len(names)
+    chain, beta, theta = load_samples(doc, source)
+    ci = doc.get("credible_intervals") if isinstance(doc.get("credible_intervals"), dict) else {}
+    mp = doc.get("map") if isinstance(doc.get("map"), dict) else {}
+    b_int = ci.get("beta") if _valid_interval(ci.get("beta")) else None
+    draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=doc["beta_hat"],
+                 point=mp.get("beta") if is_number(mp.get("beta")) else None, true=beta_true)
+    ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
+    t_ints = ci.get("theta") if isinstance(ci.get("theta"), list) and len(ci.get("theta")) == K else None
+    mp_t = mp.get("theta") if isinstance(mp.get("theta"), list) and len(mp.get("theta")) == K else None
+    for i, ax in enumerate(ax_th):
+        draw_sampled(ax, theta[:, i], rf"$\theta$ {names[i]}",
+                     interval=t_ints[i] if t_ints and _valid_interval(t_ints[i]) else None,
+                     mean=doc["theta_hat"][i], point=None if mp_t is None else mp_t[i],
+                     true=None if theta_true is None else theta_true[i])
+    n_chains = len(np.unique(chain))
+    few = " (too few to show a shape)" if len(beta) < 50 else ""
+    return (f"{len(beta)} draw{'s' if len(beta) != 1 else ''}{few} from {n_chains} "
+            f"chain{'s' if n_chains != 1 else ''}; shaded = 90% credible interval; "
+            "dashed = posterior mean; ▲ = best draw")
+
+
+def _draw_optimum(doc: dict[str, Any], ax_beta: Axes, ax_th) -> str:
+    """The point estimate of a MAP result; the subtitle that says it is no posterior."""
+    names = doc["feature_names"]
+    draw_point(ax_beta, doc["beta_hat"], r"$\hat\beta$", lo=0.005, hi=20, log=True)
+    ax_beta.set_xlabel(r"$\beta$ (log scale; low = expert)", fontsize=7.5)
+    hi = max(1.0, max(doc["theta_hat"]) * 1.1)
+    for i, ax in enumerate(ax_th):
+        draw_point(ax, doc["theta_hat"][i], rf"$\hat\theta$ {names[i]}", lo=-0.02, hi=hi)
+    return "MAP optimum only: this method gives a point, not a posterior"
 
 
 def result_warnings(doc: dict[str, Any]) -> list[str]:
