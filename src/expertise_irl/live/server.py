@@ -18,9 +18,12 @@ import socket
 from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .session import LiveSession
+
+if TYPE_CHECKING:
+    from starlette.websockets import WebSocket
 
 MAX_MESSAGE = 1024  # bytes; the largest real message is about 40
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1", "[::1]")
@@ -49,29 +52,17 @@ def create_app(session: LiveSession, *, allowed_hosts: list[str] | None = None):
     from starlette.responses import FileResponse, PlainTextResponse
     from starlette.routing import Mount, Route, WebSocketRoute
     from starlette.staticfiles import StaticFiles
-    from starlette.websockets import WebSocket, WebSocketDisconnect
+    from starlette.websockets import WebSocketDisconnect
 
     folder = static_dir()
     lock = asyncio.Lock()
     clients: set[WebSocket] = set()
 
-    def headers(host: str) -> dict[str, str]:
-        return {
-            "Content-Security-Policy": (f"default-src 'self'; connect-src 'self' ws://{host}; "
-                                        "img-src 'self' data:; frame-ancestors 'none'"),
-            "X-Content-Type-Options": "nosniff",
-            "Referrer-Policy": "no-referrer",
-            "Cache-Control": "no-store",
-        }
-
     async def index(request):
-        return FileResponse(folder / "index.html", headers=headers(request.headers.get("host", "")))
+        return FileResponse(folder / "index.html", headers=_headers(request.headers.get("host", "")))
 
     async def not_found(request):
         return PlainTextResponse("not found", status_code=404)
-
-    async def send(ws: WebSocket, doc: dict[str, Any]) -> None:
-        await ws.send_text(json.dumps(doc, allow_nan=False))
 
     async def ws_endpoint(ws: WebSocket) -> None:
         origin = ws.headers.get("origin")
@@ -83,38 +74,21 @@ def create_app(session: LiveSession, *, allowed_hosts: list[str] | None = None):
         clients.add(ws)
         try:
             async with lock:
-                await send(ws, session.static_message())
+                await _send(ws, session.static_message())
             while True:
                 event = await ws.receive()
                 if event["type"] == "websocket.disconnect":
                     break
-                text = event.get("text")
-                if text is None:
-                    await send(ws, {"type": "error", "message": "messages must be JSON text, not binary"})
-                    continue
-                if len(text.encode("utf-8", "replace")) > MAX_MESSAGE:
-                    await send(ws, {"type": "error",
-                                    "message": f"message too large (limit {MAX_MESSAGE} bytes)"})
-                    continue
-                try:
-                    msg = json.loads(text)
-                except ValueError:
-                    await send(ws, {"type": "error", "message": "malformed message: not valid JSON"})
+                msg, problem = _decode(event.get("text"))
+                if problem is not None:
+                    await _send(ws, {"type": "error", "message": problem})
                     continue
                 async with lock:
                     try:
                         replies = await asyncio.to_thread(session.handle, msg)
                     except Exception as exc:  # never let one message take the server down
                         replies = [{"type": "error", "message": f"could not handle the message: {exc}"}]
-                for r in replies:
-                    if r["type"] == "state":  # every open page follows the same session
-                        for c in list(clients):
-                            try:
-                                await send(c, r)
-                            except Exception:
-                                clients.discard(c)
-                    else:
-                        await send(ws, r)
+                await _deliver(ws, replies, clients)
         except WebSocketDisconnect:
             pass
         finally:
@@ -130,6 +104,45 @@ def create_app(session: LiveSession, *, allowed_hosts: list[str] | None = None):
         Route("/{rest:path}", not_found),
     ]
     return Starlette(routes=routes, middleware=middleware)
+
+
+def _headers(host: str) -> dict[str, str]:
+    return {
+        "Content-Security-Policy": (f"default-src 'self'; connect-src 'self' ws://{host}; "
+                                    "img-src 'self' data:; frame-ancestors 'none'"),
+        "X-Content-Type-Options": "nosniff",
+        "Referrer-Policy": "no-referrer",
+        "Cache-Control": "no-store",
+    }
+
+
+def _decode(text: str | None) -> tuple[Any, str | None]:
+    """The JSON of a client's frame, or None and why it is refused."""
+    if text is None:
+        return None, "messages must be JSON text, not binary"
+    if len(text.encode("utf-8", "replace")) > MAX_MESSAGE:
+        return None, f"message too large (limit {MAX_MESSAGE} bytes)"
+    try:
+        return json.loads(text), None
+    except ValueError:
+        return None, "malformed message: not valid JSON"
+
+
+async def _send(ws: WebSocket, doc: dict[str, Any]) -> None:
+    await ws.send_text(json.dumps(doc, allow_nan=False))
+
+
+async def _deliver(ws: WebSocket, replies: list[dict[str, Any]], clients: set[WebSocket]) -> None:
+    """A state reply to every open page (one that cannot be reached is dropped), the rest to ``ws``."""
+    for r in replies:
+        if r["type"] == "state":  # every open page follows the same session
+            for c in list(clients):
+                try:
+                    await _send(c, r)
+                except Exception:
+                    clients.discard(c)
+        else:
+            await _send(ws, r)
 
 
 def bind(host: str, port: int) -> socket.socket:
