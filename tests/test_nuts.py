@@ -9,13 +9,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
-from expertise_irl.inference import nuts as nuts_module
+from expertise_irl.inference import nuts_kernel
 from expertise_irl.inference.continuous import MethodOptions, run_method
 from expertise_irl.inference.gradient import map_estimate
-from expertise_irl.inference.nuts import _laplace_start, nuts_posterior
+from expertise_irl.inference.nuts import nuts_posterior
+from expertise_irl.inference.nuts_kernel import _laplace_start
 from expertise_irl.inference.task_likelihood import pair_counts, tasks_log_likelihood
 from expertise_irl.planning.differentiable import make_log_likelihood
 from expertise_irl.worlds.zones import load_bundled
@@ -80,7 +81,7 @@ def test_a_laplace_start_that_fails_keeps_the_chains_start():
 def test_draws_do_not_depend_on_how_many_chains_run_at_once(corridor, corridor_demos, monkeypatch):
     kwargs = dict(num_warmup=30, num_samples=20, num_chains=3, seed=5)
     together = nuts_posterior(corridor, corridor_demos, **kwargs)
-    monkeypatch.setattr(nuts_module.os, "cpu_count", lambda: 1)
+    monkeypatch.setattr(nuts_kernel.os, "cpu_count", lambda: 1)
     one_at_a_time = nuts_posterior(corridor, corridor_demos, **kwargs)
     np.testing.assert_array_equal(together.beta, one_at_a_time.beta)
     np.testing.assert_array_equal(together.theta, one_at_a_time.theta)
