@@ -94,23 +94,7 @@ def read_manifest(
         raise InputError(f"{path}: no such manifest file")
     text = read_text(path, encoding="utf-8-sig")
     rows = list(csv.reader(text.splitlines()))
-    if not rows or not any(c.strip() for c in rows[0]):
-        raise InputError(
-            f"{path}:1: empty manifest; expected a header participant,map,recording "
-            "(or participant,map,demos)"
-        )
-    header = [c.strip() for c in rows[0]]
-    missing = [c for c in REQUIRED if c not in header]
-    if missing or not any(s in header for s in SOURCES):
-        need = ", ".join(missing + ([] if any(s in header for s in SOURCES) else ["recording or demos"]))
-        raise InputError(
-            f"{path}:1: header lacks {need} (expected participant,map,recording or "
-            f"participant,map,demos; got {','.join(header)})"
-        )
-    for c in (*REQUIRED, *SOURCES):
-        if header.count(c) > 1:
-            raise InputError(f"{path}:1: column {c!r} appears twice")
-    col = {c: header.index(c) for c in (*REQUIRED, *SOURCES) if c in header}
+    header, col = _columns(path, rows)
     base = path.parent
     plans: dict[Path, WarehouseMap] = {}
     tasks: list[StudyTask] = []
@@ -121,23 +105,7 @@ def read_manifest(
         if len(row) > len(header):
             raise InputError(f"{at}: {len(row)} fields but the header has {len(header)}")
         cell = {c: (row[i].strip() if i < len(row) else "") for c, i in col.items()}
-        pid = cell["participant"]
-        if not pid:
-            raise InputError(f"{at}: empty participant")
-        if not PARTICIPANT_ID.fullmatch(pid):
-            raise InputError(
-                f"{at}: participant {pid!r} is not a valid ID (letters, digits, '.', '_', '-'; "
-                "up to 64 characters, not starting with '.'; it names a folder)"
-            )
-        if not cell["map"]:
-            raise InputError(f"{at}: empty map")
-        given = [s for s in SOURCES if cell.get(s)]
-        if len(given) != 1:
-            raise InputError(
-                f"{at}: give exactly one of recording or demos (got "
-                f"{' and '.join(given) if given else 'neither'})"
-            )
-        kind = given[0]
+        kind = _source_kind(at, cell)
         map_path = base / cell["map"]
         source = base / cell[kind]
         if not map_path.is_file():
@@ -161,7 +129,51 @@ def read_manifest(
             raise InputError(f"{at}: {exc}") from None
         if len(trajs) == 0:
             raise InputError(f"{at}: {kind} {cell[kind]} holds no moves")
-        tasks.append(StudyTask(len(tasks), line, pid, map_path, plan, kind, source, trajs, disc))
+        tasks.append(StudyTask(len(tasks), line, cell["participant"], map_path, plan, kind, source, trajs,
+                               disc))
     if not tasks:
         raise InputError(f"{path}: the manifest has a header but no rows")
     return Manifest(path, tuple(tasks))
+
+
+def _columns(path: Path, rows: list[list[str]]) -> tuple[list[str], dict[str, int]]:
+    """The header's names and the position of each known column; raises for a bad header."""
+    if not rows or not any(c.strip() for c in rows[0]):
+        raise InputError(
+            f"{path}:1: empty manifest; expected a header participant,map,recording "
+            "(or participant,map,demos)"
+        )
+    header = [c.strip() for c in rows[0]]
+    missing = [c for c in REQUIRED if c not in header]
+    if missing or not any(s in header for s in SOURCES):
+        need = ", ".join(missing + ([] if any(s in header for s in SOURCES) else ["recording or demos"]))
+        raise InputError(
+            f"{path}:1: header lacks {need} (expected participant,map,recording or "
+            f"participant,map,demos; got {','.join(header)})"
+        )
+    for c in (*REQUIRED, *SOURCES):
+        if header.count(c) > 1:
+            raise InputError(f"{path}:1: column {c!r} appears twice")
+    return header, {c: header.index(c) for c in (*REQUIRED, *SOURCES) if c in header}
+
+
+def _source_kind(at: str, cell: dict[str, str]) -> str:
+    """Which source the row gives (``recording`` or ``demos``), after checking its participant
+    and map; messages start with ``at``."""
+    pid = cell["participant"]
+    if not pid:
+        raise InputError(f"{at}: empty participant")
+    if not PARTICIPANT_ID.fullmatch(pid):
+        raise InputError(
+            f"{at}: participant {pid!r} is not a valid ID (letters, digits, '.', '_', '-'; "
+            "up to 64 characters, not starting with '.'; it names a folder)"
+        )
+    if not cell["map"]:
+        raise InputError(f"{at}: empty map")
+    given = [s for s in SOURCES if cell.get(s)]
+    if len(given) != 1:
+        raise InputError(
+            f"{at}: give exactly one of recording or demos (got "
+            f"{' and '.join(given) if given else 'neither'})"
+        )
+    return given[0]
