@@ -53,7 +53,8 @@ def run_cmd(
     """Run a sweep, or resume it: finished tasks are skipped, each task's rows land in one shard."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..experiments.engine import config_from_toml, cores, run
+    from ..experiments.engine import cores, run
+    from ..experiments.spec import config_from_toml
     from ..experiments.studies import get_study
 
     st = get_study(study)

@@ -1,6 +1,6 @@
 """The experiment engine: a study is data, a task is a pure function, engines only place tasks.
 
-A :class:`Study` names a config type (a frozen dataclass of plain values), its scales
+A :class:`Study` (:mod:`.spec`) names a config type (a frozen dataclass of plain values), its scales
 (``smoke``, ``small``, ``paper``), how a config expands into tasks, and the function that
 runs one task. Each task is a pure function of ``(config, seed, task key)`` that returns
 the rows of its instances; the randomness of an instance comes from
@@ -11,34 +11,52 @@ Engines (:mod:`.workers`): a local process pool (``spawn`` start method: JAX is 
 fork-safe; a pool whose worker dies is rebuilt and the unfinished tasks re-run) or a Dask
 ``distributed`` cluster when a scheduler address is given (tasks are submitted with
 ``retries``). Workers return rows; this process writes them (:mod:`.store`), so workers need
-no access to DIR.
+no access to DIR. :func:`status` and :func:`load` read DIR through :class:`.store.SweepDir`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..errors import InputError
-from .store import LAYOUT_VERSION, Store, config_hash, machine, to_toml, versions, write_atomic
+from .spec import (  # noqa: F401  (the study's spec, public here too)
+    Column,
+    Study,
+    TaskSpec,
+    config_dict,
+    config_from_dict,
+    config_from_toml,
+    seed_sequence,
+)
+from .store import (
+    LAYOUT_VERSION,
+    Store,
+    SweepDir,
+    config_hash,
+    machine,
+    progress,
+    to_toml,
+    versions,
+    write_atomic,
+)
 from .workers import (  # noqa: F401  (FAULTS_ENV, JAX_CACHE_ENV, execute_task: public here too)
     FAULTS_ENV,
     JAX_CACHE_ENV,
     TaskResult,
-    _dask_results,
-    _error_info,
-    _faults,
-    _kill_self,
-    _local_results,
+    error_info,
     execute_task,
+    faults,
+    kill_self,
+    run_dask,
+    run_local,
 )
 
 SCALES = ("smoke", "small", "paper")
@@ -50,147 +68,6 @@ def cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return os.cpu_count() or 1
-
-
-def seed_sequence(seed: int, identity) -> np.random.SeedSequence:
-    """The seed of the thing named by ``identity`` (a tuple of non-negative ints) in sweep ``seed``."""
-    return np.random.SeedSequence(entropy=int(seed), spawn_key=tuple(int(i) for i in identity))
-
-
-@dataclass(frozen=True)
-class Column:
-    """One documented column: name, Arrow type (as pyarrow names it) and meaning."""
-
-    name: str
-    type: str
-    doc: str
-
-
-@dataclass(frozen=True)
-class TaskSpec:
-    """A task: its key (file name of its shard), its parameters and a cost estimate (seconds)."""
-
-    key: str
-    params: dict[str, Any]
-    estimate_s: float = 1.0
-
-
-@dataclass(frozen=True)
-class Study:
-    """A named, versioned sweep definition.
-
-    Attributes:
-        name: the CLI name.
-        version: bump when a change alters the rows for the same config and seed.
-        description: one line for ``experiment list``.
-        config_type: a frozen dataclass; its fields are the study's factors.
-        scales: scale name -> config.
-        tasks: config -> task specs (each task's key unique within the study), in the order
-            they should be handed out (e.g. long ones first, maps interleaved so that workers
-            compile different maps' kernels at the start).
-        run_task: (config, seed, params) -> (columns dict of 1-D arrays, stats dict).
-        columns: the documented schema of the rows.
-        sort_by: columns that order the rows of :func:`load`.
-        counts: config -> dict of totals (instances, rows, solves grouped and not) for ``list``.
-    """
-
-    name: str
-    version: int
-    description: str
-    config_type: type
-    scales: dict[str, Any]
-    tasks: Callable[[Any], list[TaskSpec]]
-    run_task: Callable[[Any, int, dict[str, Any]], tuple[dict[str, np.ndarray], dict[str, Any]]]
-    columns: tuple[Column, ...]
-    sort_by: tuple[str, ...]
-    counts: Callable[[Any], dict[str, int]] = field(default=lambda cfg: {})
-
-    def config(self, scale: str):
-        if scale not in self.scales:
-            raise InputError(f"study {self.name!r} has no scale {scale!r} (scales: {', '.join(self.scales)})")
-        return self.scales[scale]
-
-    def arrow_schema(self):
-        import pyarrow as pa
-
-        return pa.schema([(c.name, _arrow_type(c.type)) for c in self.columns])
-
-
-def _arrow_type(name: str):
-    import pyarrow as pa
-
-    types = {"int32": pa.int32(), "int64": pa.int64(), "float64": pa.float64(), "string": pa.string(),
-             "bool": pa.bool_()}
-    return types[name]
-
-
-def config_dict(config) -> dict[str, Any]:
-    """A config as plain JSON/TOML values (tuples become lists)."""
-    return json.loads(json.dumps(dataclasses.asdict(config)))
-
-
-def config_from_dict(study: Study, values: dict[str, Any]):
-    kwargs = {}
-    for f in dataclasses.fields(study.config_type):
-        if f.name in values:
-            v = values[f.name]
-            kwargs[f.name] = tuple(v) if isinstance(v, list) else v
-    return study.config_type(**kwargs)
-
-
-def config_from_toml(study: Study, path, base):
-    """``base`` (a scale's config) with the fields set in the TOML file ``path`` replaced.
-
-    The file holds the fields either at the top level or in a table named after the study
-    (the form ``DIR/config.toml`` is written in, so a sweep's config can be edited and reused).
-    Every key must be a field of the study's config with a value of the field's type; the
-    config then checks its own values. Errors are one line naming the file and the field.
-    """
-    import tomllib
-
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: {'is a directory' if path.is_dir() else 'no such file'} (--config)")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not a TOML file: {exc}") from None
-    if set(data) == {study.name} and isinstance(data[study.name], dict):
-        data = data[study.name]
-    elif len(data) == 1 and isinstance(next(iter(data.values())), dict):
-        raise InputError(f"{path}: holds a [{next(iter(data))}] table, but the study is {study.name!r} "
-                         f"(write its fields at the top level or in a [{study.name}] table)")
-    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(base)}
-    changes = {}
-    for key, value in data.items():
-        if key not in fields:
-            raise InputError(f"{path}: {key!r} is not a field of study {study.name!r} "
-                             f"(fields: {', '.join(fields)})")
-        changes[key] = _typed(path, key, value, fields[key])
-    try:
-        return dataclasses.replace(base, **changes)
-    except InputError as exc:
-        raise InputError(f"{path}: {exc}") from None
-
-
-def _typed(path, key: str, value, default):
-    """``value`` as the type of ``default`` (lists become tuples), or a one-line InputError."""
-    def kind(x) -> str:
-        return "a boolean" if isinstance(x, bool) else "a whole number" if isinstance(x, int) else \
-            "a number" if isinstance(x, float) else "a string" if isinstance(x, str) else "a list"
-
-    if isinstance(default, tuple):
-        if not isinstance(value, list) or not value:
-            raise InputError(f"{path}: {key} must be a non-empty list, got {value!r}")
-        like = default[0] if default else value[0]
-        return tuple(_typed(path, f"{key}[{i}]", v, like) for i, v in enumerate(value))
-    ok = (isinstance(value, bool) if isinstance(default, bool)
-          else isinstance(value, int) and not isinstance(value, bool) if isinstance(default, int)
-          else isinstance(value, int | float) and not isinstance(value, bool) if isinstance(default, float)
-          else isinstance(value, str))
-    if not ok:
-        raise InputError(f"{path}: {key} must be {kind(default)}, got {value!r}")
-    return float(value) if isinstance(default, float) else value
 
 
 def _now() -> str:
@@ -297,13 +174,12 @@ def run(
 
 def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_failed, on_start, on_result,
                 t_start) -> RunSummary:
-    faults = _faults()
-    if ("kill-at-start", "") in faults:
-        _kill_self()
-    done, failed = store.keys("rows"), store.keys("failures")
-    for key in done & failed:  # a retried task finished but its old failure was not removed yet
+    injected = faults()
+    if ("kill-at-start", "") in injected:
+        kill_self()
+    for key in store.keys("failures") & store.keys("rows"):  # a retried task finished, its failure stayed
         store.remove("failures", key)
-    failed -= done
+    done, failed = progress(store, {t.key for t in tasks})
     todo = [t for t in tasks if t.key not in done and (retry_failed or t.key not in failed)]
     record = {"started": _now(), "engine": "dask" if scheduler else "local",
               "scheduler": scheduler, "workers": None if scheduler else workers,
@@ -312,18 +188,18 @@ def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_f
     record_path = _record_run(store, record)
     if on_start is not None:
         on_start(len(tasks), len(todo))
-    kill_after = next((int(a) for k, a in faults if k == "kill-after"), None)
-    kill_in_write = next((int(a) for k, a in faults if k == "kill-in-write"), None)
+    kill_after = next((int(a) for k, a in injected if k == "kill-after"), None)
+    kill_in_write = next((int(a) for k, a in injected if k == "kill-in-write"), None)
     by_key = {t.key: t for t in tasks}
     job = (study.name, manifest["config"], int(seed))
-    results = _dask_results(todo, job, scheduler) if scheduler else _local_results(todo, job, workers)
+    results = run_dask(todo, job, scheduler) if scheduler else run_local(todo, job, workers)
     ran = n_failed = rows = committed = 0
     for res in results:
         if res.error is None:
             try:
                 table = _columns_table(study, res.columns)
             except Exception as exc:  # a study that breaks its own schema: that task fails
-                res = TaskResult(res.key, None, res.stats, _error_info(exc))
+                res = TaskResult(res.key, None, res.stats, error_info(exc))
         if res.error is not None:
             store.write_table("failures", res.key, _failure_table(res.key, by_key[res.key].params, res.error))
             n_failed += 1
@@ -331,7 +207,7 @@ def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_f
                 on_result(res, 0)
             continue
         store.write_table("timings", res.key, _stats_table(res.key, res.stats))
-        hook = _kill_self if kill_in_write is not None and committed == kill_in_write else None
+        hook = kill_self if kill_in_write is not None and committed == kill_in_write else None
         store.write_table("rows", res.key, table, before_rename=hook)
         store.remove("failures", res.key)
         committed += 1
@@ -340,11 +216,11 @@ def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_f
         if on_result is not None:
             on_result(res, table.num_rows)
         if kill_after is not None and committed >= kill_after:
-            _kill_self()
+            kill_self()
     wall = time.perf_counter() - t_start
     _record_run(store, {**record, "finished": _now(), "wall_time_s": round(wall, 3), "tasks_run": ran,
                         "tasks_failed": n_failed}, record_path)
-    still_failed = 0 if retry_failed else len({t.key for t in tasks} & failed)
+    still_failed = 0 if retry_failed else len(failed)
     return RunSummary(len(tasks), len(tasks) - len(todo), ran, n_failed, rows, wall, still_failed)
 
 
@@ -352,8 +228,8 @@ def _run_locked(study, store, manifest, tasks, seed, workers, scheduler, retry_f
 def load(out, table: str = "rows"):
     """The sweep's ``rows`` (or ``timings`` / ``failures``) as one pandas DataFrame.
 
-    Rows are sorted by the study's identity columns, so two runs of the same sweep give equal
-    frames whatever the order their tasks finished in.
+    Rows are sorted by the study's identity columns (its ``sort_by``), so two runs of the same
+    sweep give equal frames whatever the order their tasks finished in.
     """
     import pandas as pd
 
@@ -362,23 +238,13 @@ def load(out, table: str = "rows"):
 
     if table not in TABLES:
         raise InputError(f"table must be one of {', '.join(TABLES)}, got {table!r}")
-    store = Store(Path(out))
-    manifest = store.read_manifest()
-    keys = set(manifest["task_keys"])
-    if table == "failures":
-        keys -= store.keys("rows")
-    arrow = store.read(table, keys)
-    if arrow is None:
-        if table == "rows":
-            return get_study(manifest["study"]).arrow_schema().empty_table().to_pandas()
-        return pd.DataFrame()
-    df = arrow.to_pandas()
+    sweep = SweepDir.open(out)
     if table == "rows":
-        study = get_study(manifest["study"])
-        df = df.sort_values(list(study.sort_by), kind="stable").reset_index(drop=True)
-    else:
-        df = df.sort_values("task", kind="stable").reset_index(drop=True)
-    return df
+        study = get_study(sweep.manifest["study"])
+        df = sweep.frame("rows", sweep.tasks, study.sort_by)
+        return study.arrow_schema().empty_table().to_pandas() if df is None else df
+    df = sweep.frame(table, sweep.failed if table == "failures" else sweep.tasks)
+    return pd.DataFrame() if df is None else df
 
 
 @dataclass(frozen=True)
@@ -407,20 +273,17 @@ class Status:
 
 def status(out) -> Status:
     """Progress of the sweep in ``out``: tasks done / failed / total, rows, time spent."""
-    store = Store(Path(out))
-    manifest = store.read_manifest()
-    keys = set(manifest["task_keys"])
-    done = store.keys("rows") & keys
-    failed = (store.keys("failures") & keys) - done
+    sweep = SweepDir.open(out)
     spent, mean = 0.0, None
-    timings = store.read("timings", done)
+    timings = sweep.store.read("timings", sweep.done)
     if timings is not None and "wall_time_s" in timings.column_names:
         wall = timings.column("wall_time_s").to_pylist()
         spent = float(sum(wall))
         mean = spent / len(wall) if wall else None
     fails = []
-    if failed:
-        ft = store.read("failures", failed)
+    if sweep.failed:
+        ft = sweep.store.read("failures", sweep.failed)
         fails = list(zip(ft.column("task").to_pylist(), ft.column("message").to_pylist(), strict=True))
-    return Status(manifest["study"], manifest["scale"], int(manifest["seed"]), len(keys), len(done),
-                  len(failed), store.n_rows(done), spent, mean, fails)
+    m = sweep.manifest
+    return Status(m["study"], m["scale"], int(m["seed"]), len(sweep.tasks), len(sweep.done),
+                  len(sweep.failed), sweep.n_rows(), spent, mean, fails)

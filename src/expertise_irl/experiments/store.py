@@ -16,6 +16,9 @@ disk, then renamed into ``DIR/rows`` (an atomic step) and the directory is synce
 is recorded anywhere else about a finished task, so a run killed at any moment leaves every
 task either finished (its shard is there, complete) or not started; the next run redoes
 the latter. The timing file is written before the shard, so a finished task always has one.
+
+Reading: :class:`SweepDir` opens a sweep once (manifest, which tasks are done and which failed,
+counted by :func:`progress` alone) and serves ``engine.status``, ``engine.load`` and the reports.
 """
 
 from __future__ import annotations
@@ -246,3 +249,71 @@ class Store:
         import pyarrow.parquet as pq
 
         return sum(pq.read_metadata(self.shard("rows", k)).num_rows for k in keys)
+
+
+# ------------------------------------------------------------------------ reading
+def progress(store: Store, keys: Iterable[str]) -> tuple[set[str], set[str]]:
+    """``(done, failed)`` among the task ``keys``: done has a row shard; failed has a failure shard
+    and no row shard (a retried task that finished may keep its old failure until the next run)."""
+    keys = set(keys)
+    done = store.keys("rows") & keys
+    return done, (store.keys("failures") & keys) - done
+
+
+@dataclass(frozen=True)
+class SweepDir:
+    """A sweep directory opened for reading: its manifest and which of its tasks are done or failed.
+
+    Attributes:
+        store: the directory.
+        manifest: ``manifest.json``.
+        tasks, done, failed: task keys: all of the manifest's, those finished, those failed (and
+            not finished since).
+    """
+
+    store: Store
+    manifest: dict[str, Any]
+    tasks: frozenset[str]
+    done: frozenset[str]
+    failed: frozenset[str]
+
+    @classmethod
+    def open(cls, root) -> SweepDir:
+        """Read ``root``'s manifest and progress; a one-line InputError if it holds no sweep."""
+        store = Store(Path(root))
+        manifest = store.read_manifest()
+        if not isinstance(manifest, dict) or "study" not in manifest or "task_keys" not in manifest:
+            raise InputError(f"{store.root / MANIFEST}: not a sweep manifest (no study or task_keys)")
+        keys = set(manifest["task_keys"])
+        done, failed = progress(store, keys)
+        return cls(store, manifest, frozenset(keys), frozenset(done), frozenset(failed))
+
+    @property
+    def root(self) -> Path:
+        return self.store.root
+
+    def frame(self, table: str, keys: Iterable[str], sort_by: Iterable[str] = ("task",)):
+        """The shards of ``table`` among ``keys`` as one pandas DataFrame, stably sorted by the
+        ``sort_by`` columns it has (the shards' order where it has none); None where no shard is."""
+        arrow = self.store.read(table, keys)
+        if arrow is None:
+            return None
+        df = arrow.to_pandas()
+        by = [c for c in sort_by if c in df.columns]
+        return df.sort_values(by, kind="stable").reset_index(drop=True) if by else df
+
+    def n_rows(self) -> int:
+        """Rows of the finished tasks (from the shards' metadata)."""
+        return self.store.n_rows(self.done)
+
+    def runs(self) -> tuple[dict[str, Any], ...]:
+        """The records in ``runs/*.json``, oldest first; unreadable ones are skipped."""
+        out = []
+        for path in sorted((self.root / "runs").glob("*.json")):
+            try:
+                record = json.loads(path.read_text())
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+                continue
+            if isinstance(record, dict):
+                out.append(record)
+        return tuple(sorted(out, key=lambda r: str(r.get("started", ""))))

@@ -25,9 +25,9 @@ from ..errors import InputError
 from ..planning.jax_cache import JAX_CACHE_ENV, enable_jax_cache  # noqa: F401  (JAX_CACHE_ENV: public here too)
 
 if TYPE_CHECKING:
-    from .engine import TaskSpec
+    from .spec import TaskSpec
 
-#: Environment variable read by the engine to inject faults (tests only); see :func:`_faults`.
+#: Environment variable read by the engine to inject faults (tests only); see :func:`faults`.
 FAULTS_ENV = "EXPERTISE_IRL_FAULTS"
 #: Attempts the local pool gives a task whose worker process died before it gives up.
 LOCAL_ATTEMPTS = 3
@@ -35,7 +35,7 @@ LOCAL_ATTEMPTS = 3
 DASK_RETRIES = 2
 
 
-def _faults() -> list[tuple[str, str]]:
+def faults() -> list[tuple[str, str]]:
     """Faults to inject, from ``EXPERTISE_IRL_FAULTS`` (comma-separated ``kind:arg``).
 
     Worker side: ``raise:KEY`` (the task raises), ``die:KEY:MARKER`` (the worker process exits
@@ -51,7 +51,8 @@ def _faults() -> list[tuple[str, str]]:
     return out
 
 
-def _kill_self() -> None:
+def kill_self() -> None:
+    """End this process at once with SIGKILL (the driver-side faults)."""
     os.kill(os.getpid(), signal.SIGKILL)
 
 
@@ -66,10 +67,10 @@ class TaskResult:
 def execute_task(study_name: str, config: dict[str, Any], seed: int, key: str,
                  params: dict[str, Any]) -> TaskResult:
     """Run one task in this process (the function the engines ship to workers)."""
-    from .engine import config_from_dict
+    from .spec import config_from_dict
     from .studies import get_study
 
-    for kind, arg in _faults():
+    for kind, arg in faults():
         if kind == "raise" and arg == key:
             raise RuntimeError(f"injected failure in task {key}")
         if kind == "die":
@@ -100,13 +101,14 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
-def _error_info(exc: BaseException) -> dict[str, str]:
+def error_info(exc: BaseException) -> dict[str, str]:
+    """A failure as the ``failures`` table records it: error type, message and traceback."""
     return {"error_type": type(exc).__name__, "message": str(exc),
             "traceback": "".join(traceback.format_exception(exc))}
 
 
 # ---------------------------------------------------------------------------- engines
-def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[TaskResult]:
+def run_local(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[TaskResult]:
     """Run tasks on a ``spawn`` process pool; rebuild the pool if a worker dies.
 
     If the caller stops early (an error, Ctrl-C) the queued tasks are cancelled and the
@@ -138,10 +140,10 @@ def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[T
                         if attempts[t.key] < LOCAL_ATTEMPTS:
                             pending.append(t)
                             continue
-                        res = TaskResult(t.key, None, {}, _error_info(RuntimeError(
+                        res = TaskResult(t.key, None, {}, error_info(RuntimeError(
                             f"worker process died {attempts[t.key]} times running this task ({exc})")))
                     except Exception as exc:
-                        res = TaskResult(t.key, None, {}, _error_info(exc))
+                        res = TaskResult(t.key, None, {}, error_info(exc))
                     yield res
         finally:
             if futures:  # stopped early: do not wait for the rest
@@ -153,7 +155,7 @@ def _local_results(todo: list[TaskSpec], job: tuple, workers: int) -> Iterator[T
                 pool.shutdown(wait=True)
 
 
-def _dask_results(todo: list[TaskSpec], job: tuple, address: str) -> Iterator[TaskResult]:
+def run_dask(todo: list[TaskSpec], job: tuple, address: str) -> Iterator[TaskResult]:
     """Run tasks on a Dask distributed cluster (``retries`` re-runs failed attempts)."""
     from distributed import Client, as_completed
 
@@ -173,5 +175,5 @@ def _dask_results(todo: list[TaskSpec], job: tuple, address: str) -> Iterator[Ta
             try:
                 yield fut.result()
             except Exception as exc:
-                yield TaskResult(t.key, None, {}, _error_info(exc))
+                yield TaskResult(t.key, None, {}, error_info(exc))
             fut.release()

@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import InputError
-from ..experiments.engine import Column, Study, TaskSpec
+from ..experiments.spec import Column, Study, TaskSpec
 
 METHODS = ("discrete", "map", "nuts")
 
@@ -136,7 +136,7 @@ def _jsonable(x):
 def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
     """MAP or NUTS on all of one participant's tasks (their log-likelihoods summed)."""
     from ..demos.trajectories import Trajectories
-    from ..inference.continuous import MethodOptions, run_method
+    from ..inference.methods import get_method
 
     pid = params["participant"]
     mine = [t for t in _data(cfg.data)["tasks"] if t["participant"] == pid]
@@ -152,15 +152,16 @@ def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict,
                 np.asarray(t["actions"]),
             )
         )
-    opts = MethodOptions(
+    method = get_method(cfg.method)
+    opts = method.options_from(dict(
         starts=cfg.starts,
         chains=cfg.chains,
         warmup=cfg.warmup,
         samples=cfg.samples,
         prior=cfg.prior,
         model=cfg.model,
-    )
-    res = run_method(cfg.method, mdps, trajs, opts, participant_seed(pid) + int(seed))
+    ))
+    res = method.run(mdps, trajs, opts, participant_seed(pid) + int(seed)).fields
     if "draws" in res:
         chain, theta, beta = res.pop("draws")
         res["draws"] = {"chain": chain, "theta": theta, "beta": beta}
@@ -210,50 +211,30 @@ def run_optimal(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, di
 _TASK = Column("task", "int32", "manifest row (0-based, header and blank lines not counted)")
 _PARTICIPANT = Column("participant", "string", "participant ID")
 
-DISCRETE = Study(
-    name="user-study-discrete",
-    version=2,  # 2: over-relaxed solves (values move within the tolerance)
-    description="expertise-irl study: one solve per floor plan, log-likelihoods of every manifest row",
-    config_type=UserStudyConfig,
-    scales={},
-    tasks=_map_tasks,
-    run_task=run_discrete,
-    columns=(
-        _TASK,
-        _PARTICIPANT,
-        Column("hypothesis", "int32", "hypothesis index (θ-major, β fastest)"),
-        Column("log_likelihood", "float64", "log P(Ξ_row | h) (−inf: impossible)"),
-    ),
-    sort_by=("task", "hypothesis"),
-)
-CONTINUOUS = Study(
-    name="user-study-continuous",
-    version=2,  # 2: over-relaxed solves (values move within the tolerance)
-    description="expertise-irl study --method map|nuts: one task per participant",
-    config_type=UserStudyConfig,
-    scales={},
-    tasks=_participant_tasks,
-    run_task=run_continuous,
-    columns=(_PARTICIPANT, Column("result", "string", "the method's result fields (JSON)")),
-    sort_by=("participant",),
-)
-OPTIMAL = Study(
-    name="user-study-optimal",
-    version=2,  # 2: over-relaxed solves (values move within the tolerance)
-    description="expertise-irl study: optimal paths (β = 0.001, θ̂) per floor plan",
-    config_type=UserStudyConfig,
-    scales={},
-    tasks=_map_tasks,
-    run_task=run_optimal,
-    columns=(
-        _TASK,
-        _PARTICIPANT,
-        Column("episode", "int32", "episode of the row (0-based)"),
-        Column("step", "int32", "step"),
-        Column("state", "int64", "state"),
-        Column("action", "int32", "action"),
-        Column("reached_goal", "bool", "the path ends in a goal"),
-    ),
-    sort_by=("task", "episode", "step"),
-)
+
+
+def _study(name: str, tasks, run_task, columns: tuple[Column, ...], sort_by: tuple[str, ...],
+           description: str) -> Study:
+    """A user-study study: its config carries the data, so it has no scales."""
+    return Study(name=name, version=2,  # 2: over-relaxed solves (values move within the tolerance)
+                 description=description, config_type=UserStudyConfig, scales={}, tasks=tasks,
+                 run_task=run_task, columns=columns, sort_by=sort_by)
+
+
+_DISCRETE_COLUMNS = (_TASK, _PARTICIPANT,
+                     Column("hypothesis", "int32", "hypothesis index (θ-major, β fastest)"),
+                     Column("log_likelihood", "float64", "log P(Ξ_row | h) (−inf: impossible)"))
+_CONTINUOUS_COLUMNS = (_PARTICIPANT, Column("result", "string", "the method's result fields (JSON)"))
+_OPTIMAL_COLUMNS = (_TASK, _PARTICIPANT, Column("episode", "int32", "episode of the row (0-based)"),
+                    Column("step", "int32", "step"), Column("state", "int64", "state"),
+                    Column("action", "int32", "action"),
+                    Column("reached_goal", "bool", "the path ends in a goal"))
+
+DISCRETE = _study("user-study-discrete", _map_tasks, run_discrete, _DISCRETE_COLUMNS, ("task", "hypothesis"),
+                  "expertise-irl study: one solve per floor plan, log-likelihoods of every manifest row")
+CONTINUOUS = _study("user-study-continuous", _participant_tasks, run_continuous, _CONTINUOUS_COLUMNS,
+                    ("participant",), "expertise-irl study --method map|nuts: one task per participant")
+OPTIMAL = _study("user-study-optimal", _map_tasks, run_optimal, _OPTIMAL_COLUMNS, ("task", "episode", "step"),
+                 "expertise-irl study: optimal paths (β = 0.001, θ̂) per floor plan")
+#: Registered as the entry point ``user-study`` (group ``expertise_irl.studies``, in pyproject.toml).
 STUDIES = (DISCRETE, CONTINUOUS, OPTIMAL)

@@ -1,10 +1,10 @@
 """Reports of sweeps: figures, Pearson tables and the paper's claims with computed verdicts.
 
 ``build_report(DIR, out)`` reads one sweep directory alone (``manifest.json``, the Parquet rows and
-timings, ``runs/*.json``), dispatches on the manifest's study to that study's report (:mod:`.conditions`,
-:mod:`.cardinality`, :mod:`.optimisation`, :mod:`.fullset`) and writes, into ``out``
-(default ``DIR/report``): ``report.md``, ``figures/figN.png`` and ``.pdf``, ``tables/*.csv`` and
-``claims.csv``.
+timings, ``runs/*.json``), hands it to the report builder its study declares (``Study.report``:
+:mod:`.fixed_vs_joint`, :mod:`.cardinality`, :mod:`.optimisation`, :mod:`.fullset`), with the rows
+in the study's ``sort_by`` order, and writes, into ``out`` (default ``DIR/report``): ``report.md``,
+``figures/figN.png`` and ``.pdf``, ``tables/*.csv`` and ``claims.csv``.
 """
 
 from __future__ import annotations
@@ -16,29 +16,27 @@ from pathlib import Path
 from ...errors import InputError
 from .sweep import Sweep, check_directory, read_sweep
 
-#: study name -> (module of its report, the identity columns its rows are sorted by)
-REPORTS = {
-    "conditions": ("fixed_vs_joint", ("environment", "run", "k", "group", "truth", "condition", "method",
-                                  "episodes")),
-    "cardinality": ("cardinality", ("environment", "run", "k", "group", "truth", "condition", "method",
-                                    "episodes")),
-    "optimisation": ("optimisation", ("environment", "instance", "method", "episodes")),
-    "fullset": ("fullset", ("source", "environment", "run", "k", "group", "instance", "set", "episodes")),
-}
-
-__all__ = ["REPORTS", "Sweep", "build_report", "read_sweep"]
+__all__ = ["Sweep", "build_report", "read_sweep"]
 
 
-def _study_of(root: Path) -> str:
+def _study_of(root: Path):
+    """The study of the sweep in ``root``, if it has a report; else a one-line InputError."""
     from ..store import Store
+    from ..studies import studies
 
     check_directory(root)
     manifest = Store(root).read_manifest()
-    study = manifest.get("study") if isinstance(manifest, dict) else None
-    if study not in REPORTS:
-        raise InputError(f"{root / 'manifest.json'}: no report for study {study!r} "
-                         f"(reports: {', '.join(REPORTS)})")
-    return study
+    name = manifest.get("study") if isinstance(manifest, dict) else None
+    reports = [s.name for s in studies().values() if s.report]
+    if name not in reports:
+        raise InputError(f"{root / 'manifest.json'}: no report for study {name!r} "
+                         f"(reports: {', '.join(reports)})")
+    return studies()[name]
+
+
+def _builder(study) -> Callable:
+    module, _, function = study.report.partition(":")
+    return getattr(import_module(module), function)
 
 
 def build_report(root, out=None, *, on_warning: Callable[[str], None] | None = None) -> Path:
@@ -54,9 +52,8 @@ def build_report(root, out=None, *, on_warning: Callable[[str], None] | None = N
     root = Path(root)
     out = Path(out) if out is not None else root / "report"
     study = _study_of(root)
-    module, sort_by = REPORTS[study]
-    sweep = read_sweep(root, sort_by)
-    report = import_module(f"{__name__}.{module}").build(sweep)
+    sweep = read_sweep(root, study.sort_by)
+    report = _builder(study)(sweep)
     path = write(report, sweep, out)
     for warn in (smoke_warning(report, sweep), unfinished_warning(sweep)):
         if warn and on_warning is not None:

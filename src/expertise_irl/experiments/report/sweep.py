@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import InputError
-from ..store import MANIFEST, Store
+from ..store import MANIFEST, SweepDir
 
 
 @dataclass(frozen=True)
@@ -98,51 +98,24 @@ def workers_text(runs) -> str:
     return "; ".join(parts)
 
 
-def _runs(root: Path) -> tuple[dict[str, Any], ...]:
-    import json
-
-    out = []
-    for path in sorted((root / "runs").glob("*.json")):
-        try:
-            record = json.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-            continue
-        if isinstance(record, dict):
-            out.append(record)
-    return tuple(sorted(out, key=lambda r: str(r.get("started", ""))))
-
-
-def _table(store: Store, table: str, keys: set[str], sort_by: list[str]):
-    import pandas as pd
-
-    arrow = store.read(table, keys)
-    if arrow is None:
-        return pd.DataFrame()
-    df = arrow.to_pandas()
-    by = [c for c in sort_by if c in df.columns]
-    return df.sort_values(by, kind="stable").reset_index(drop=True) if by else df
-
-
 def read_sweep(root, sort_by: tuple[str, ...] = ()) -> Sweep:
     """Read the sweep in ``root``; rows sorted by ``sort_by`` (the study's identity columns).
 
     Raises InputError if ``root`` holds no manifest or no finished task.
     """
+    import pandas as pd
+
     root = Path(root)
     check_directory(root)
-    store = Store(root)
-    manifest = store.read_manifest()
-    if not isinstance(manifest, dict) or "study" not in manifest or "task_keys" not in manifest:
-        raise InputError(f"{root / MANIFEST}: not a sweep manifest (no study or task_keys)")
-    keys = set(manifest["task_keys"])
-    done = store.keys("rows") & keys
-    failed = (store.keys("failures") & keys) - done
-    rows = _table(store, "rows", done, list(sort_by))
-    if not len(rows):
-        raise InputError(f"{root / 'rows'}: no rows yet ({len(done)} of {len(keys)} tasks done); "
+    src = SweepDir.open(root)
+    rows = src.frame("rows", src.done, sort_by)
+    if rows is None or not len(rows):
+        raise InputError(f"{root / 'rows'}: no rows yet ({len(src.done)} of {len(src.tasks)} tasks done); "
                          "nothing to report")
-    timings = _table(store, "timings", done, ["task"])
-    return Sweep(root, manifest, rows, timings, len(done), len(failed), len(keys), _runs(root))
+    timings = src.frame("timings", src.done)
+    timings = pd.DataFrame() if timings is None else timings
+    return Sweep(root, src.manifest, rows, timings, len(src.done), len(src.failed), len(src.tasks),
+                 src.runs())
 
 
 def check_directory(root: Path) -> None:

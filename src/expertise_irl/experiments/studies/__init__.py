@@ -1,19 +1,44 @@
-"""The registry of studies (``expertise-irl experiment list``)."""
+"""The registry of studies (``expertise-irl experiment list``), filled from entry points.
+
+Every study, the built-in ones included, is registered as a Python entry point in the group
+``expertise_irl.studies`` that names a :class:`~expertise_irl.experiments.spec.Study` or a
+list or tuple of them, e.g. in a package's ``pyproject.toml``::
+
+    [project.entry-points."expertise_irl.studies"]
+    my-study = "my_package.my_study:STUDY"
+
+so the engine never imports the packages that define studies (``userstudy`` registers its own),
+and another installed package can add a study without touching this one. Workers (local
+processes, Dask workers) find a study by name the same way, from the installed metadata.
+"""
 
 from __future__ import annotations
 
+from functools import cache
+from importlib.metadata import entry_points
+
 from ...errors import InputError
+
+#: The entry-point group that registers studies.
+GROUP = "expertise_irl.studies"
+
+
+@cache
+def _registered() -> tuple:
+    found = []
+    for ep in entry_points(group=GROUP):
+        value = ep.load()
+        found += list(value) if isinstance(value, list | tuple) else [value]
+    names = [s.name for s in found]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"study {twice[0]!r} is registered twice (entry points {GROUP!r})")
+    return tuple(found)
 
 
 def studies() -> dict:
-    """Study name -> :class:`~expertise_irl.experiments.engine.Study`."""
-    from ...userstudy.study import STUDIES as user_studies
-    from .cardinality import STUDY as cardinality
-    from .fixed_vs_joint import STUDY as conditions
-    from .fullset import STUDY as fullset
-    from .optimisation import STUDY as optimisation
-
-    return {s.name: s for s in (conditions, cardinality, optimisation, fullset, *user_studies)}
+    """Study name -> :class:`~expertise_irl.experiments.spec.Study`, in the order registered."""
+    return {s.name: s for s in _registered()}
 
 
 def get_study(name: str):

@@ -35,4 +35,5 @@ STUDY = dataclasses.replace(
     version=3,  # 3: over-relaxed solves (values move within the tolerance)
     description="Sec. VI-E: the discrete set with k = 20..100 preference vectors, in- and out-of-set truths",
     scales=SCALES,
+    report="expertise_irl.experiments.report.cardinality:build",
 )

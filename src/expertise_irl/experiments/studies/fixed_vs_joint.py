@@ -40,14 +40,29 @@ import numpy as np
 
 from ...errors import InputError
 from ...hypotheses import GROUP_NAMES as GROUPS
-from ..engine import Column, Study, TaskSpec, seed_sequence
+from ..spec import Column, Study, TaskSpec, seed_sequence
+from .common import (
+    BETA_HAT_MEAN,
+    EPISODES_SEEN,
+    FEATURES,
+    MAP_COLUMNS,
+    METRIC_COLUMNS,
+    SEED,
+    SET_COMPOSITION,
+    TRUTH_PROBABILITY,
+    composition_values,
+    episode_columns,
+    feature_columns,
+    feature_values,
+    truth_columns,
+    truth_values,
+)
 
 if TYPE_CHECKING:
     from ...demos.trajectories import Trajectories
 
 TRUTHS = ("in_set", "out_of_set")
 CONDITIONS = ("full", "fixed_theta", "fixed_beta")
-FEATURES = ("length", "road", "avoid", "slow", "traffic")
 
 
 @lru_cache(maxsize=4)
@@ -306,7 +321,6 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
     from ...demos.simulation import capped_flags
     from ...hypotheses import HypothesisSet, expertise_group
     from ...inference.belief import DiscreteBelief
-    from ...inference.hypothesis_sets import set_composition
 
     trajs = p.trajectories
     eps = trajs.episodes()
@@ -348,12 +362,8 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
         "n_capped": np.tile(np.cumsum(capped), len(conds)),
         "map_width": np.full(m, zm.width), "map_height": np.full(m, zm.height),
         "n_states": np.full(m, mdp.n_states), "n_hypotheses": np.array(est["n_hypotheses"]),
-        "beta_true": np.full(m, p.beta), "group_true": np.full(m, g_true, dtype=object),
+        **truth_values(m, p.theta, p.beta), **composition_values(m, p.theta, p.beta, hyp),
     }
-    for i, f in enumerate(FEATURES):
-        col[f"theta_true_{f}"] = np.full(m, p.theta[i])
-    for name, v in set_composition(p.theta, p.beta, hyp.thetas, hyp.betas).items():
-        col[name] = np.full(m, v)
     fb = p.fixed_beta if p.fixed_beta is not None else np.nan
     col["fixed_beta"] = np.where(col["condition"] == "fixed_beta", fb, np.nan).astype(np.float64)
     for i, f in enumerate(FEATURES):
@@ -361,8 +371,7 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
         col[f"fixed_theta_{f}"] = np.where(col["condition"] == "fixed_theta", v, np.nan)
     col["beta_hat"] = np.array(est["beta_hat"])
     col["group_hat"] = np.array([expertise_group(x) for x in est["beta_hat"]], dtype=object)
-    for i, f in enumerate(FEATURES):
-        col[f"theta_hat_{f}"] = theta_hat[:, i]
+    col.update(feature_values("theta_hat", theta_hat))
     col["p_group_true"] = np.array(est["p_group_true"])
     col["truth_probability"] = np.array(est["truth_probability"])
     col["entropy"] = np.array(est["entropy"])
@@ -386,14 +395,8 @@ def estimate_metrics(mdp, model: str, theta, beta: float, value, theta_hat,
 
 
 # ----------------------------------------------------------------------------- schema
-#: The metrics of Sec. V-E, as :func:`estimate_metrics` computes them (every study's rows).
-METRIC_COLUMNS = (
-    Column("expertise_distance", "float64", "|β* − β̂|"),
-    Column("cosine_similarity", "float64", "cosine of θ* and θ̂"),
-    Column("policy_regret", "float64", "Eq. 17 with θ̂ evaluated at the true β*"),
-)
 _ID = [
-    Column("seed", "int64", "the sweep's seed (`--seed`)"),
+    SEED,
     Column("environment", "int32", "environment index e (its map is seeded by `(e,)`)"),
     Column("run", "int32", "run index r (Θ_k is seeded by `(e, r, k)`)"),
     Column("k", "int32", "number of preference vectors in Θ_k"),
@@ -403,35 +406,23 @@ _ID = [
     Column("condition", "string", "`full` (Ψ_k), `fixed_theta` (Θ = {θ}, θ ≠ θ*), `fixed_beta` "
            "(B = {β}, β in another group than β*)"),
     Column("method", "string", "inference method (`discrete`: the discrete-set belief)"),
-    Column("episodes", "int32", "episodes seen, n = 1..N"),
+    EPISODES_SEEN,
 ]
-#: Table I's factors: how close the truth is to the person's Ψ_k = Θ_k × B.
-SET_COMPOSITION = (
-    Column("theta_k_truth_similarity", "float64", "mean cosine between θ* and the members of Θ_k"),
-    Column("theta_k_diversity", "float64", "mean cosine over the distinct pairs of Θ_k"),
-    Column("beta_set_distance", "float64", "min |β* − b| over the set B"),
-)
 _CONTEXT = [
-    Column("n_pairs", "int64", "actions seen in the first n episodes"),
-    Column("n_capped", "int32", "episodes among the first n that hit `max_steps` without reaching the goal"),
-    Column("map_width", "int32", "map width (cells)"),
-    Column("map_height", "int32", "map height (cells)"),
-    Column("n_states", "int32", "states of the MDP"),
+    *episode_columns(),
+    *MAP_COLUMNS,
     Column("n_hypotheses", "int32", "hypotheses of the condition's set"),
-    Column("beta_true", "float64", "β* of the person"),
-    Column("group_true", "string", "expertise group of β*"),
-    *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm)") for f in FEATURES],
+    *truth_columns(),
     *SET_COMPOSITION,
     Column("fixed_beta", "float64", "the β of the Fixed β set (NaN in other conditions)"),
-    *[Column(f"fixed_theta_{f}", "float64", f"component `{f}` of the Fixed θ set's θ (NaN elsewhere)")
-      for f in FEATURES],
+    *feature_columns("fixed_theta", "component `{f}` of the Fixed θ set's θ (NaN elsewhere)"),
 ]
 _ESTIMATES = [
-    Column("beta_hat", "float64", "β̂ = E[β] after n episodes"),
+    BETA_HAT_MEAN,
     Column("group_hat", "string", "expertise group of β̂"),
-    *[Column(f"theta_hat_{f}", "float64", f"θ̂ = E[θ] component `{f}`") for f in FEATURES],
+    *feature_columns("theta_hat", "θ̂ = E[θ] component `{f}`"),
     Column("p_group_true", "float64", "posterior mass on β*'s expertise group"),
-    Column("truth_probability", "float64", "posterior probability of (θ*, β*) (NaN if not in the set)"),
+    TRUTH_PROBABILITY,
     Column("entropy", "float64", "posterior entropy (nats)"),
     *METRIC_COLUMNS,
 ]
@@ -440,11 +431,8 @@ STUDY = Study(
     name="conditions",
     version=3,  # 3: over-relaxed solves (values move within the tolerance)
     description="Sec. VI-A: Full set vs Fixed θ vs Fixed β, in- and out-of-set truths, metrics per episode",
-    config_type=ConditionsConfig,
-    scales=SCALES,
-    tasks=tasks,
-    run_task=run_task,
+    config_type=ConditionsConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=(*_ID, *_CONTEXT, *_ESTIMATES),
     sort_by=("environment", "run", "k", "group", "truth", "condition", "method", "episodes"),
-    counts=counts,
+    report="expertise_irl.experiments.report.fixed_vs_joint:build",
 )

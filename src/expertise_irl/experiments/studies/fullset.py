@@ -31,10 +31,23 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...errors import InputError
-from ..engine import Column, Study, TaskSpec
+from ..spec import Column, Study, TaskSpec
 from . import fixed_vs_joint as cond
 from . import optimisation as opt
-from .fixed_vs_joint import FEATURES, METRIC_COLUMNS
+from .common import (
+    BETA_HAT_MEAN,
+    EPISODES_SEEN,
+    FEATURES,
+    METRIC_COLUMNS,
+    N_STATES,
+    TRUTH_PROBABILITY,
+    check_among,
+    episode_columns,
+    feature_columns,
+    feature_values,
+    truth_columns,
+    truth_values,
+)
 
 SOURCES = ("conditions", "optimisation")
 SETS = ("theta_k", "full")
@@ -51,9 +64,7 @@ class FullsetConfig:
     betas: str = "paper-sim"
 
     def __post_init__(self) -> None:
-        bad = [s for s in self.sources if s not in SOURCES]
-        if bad or not self.sources:
-            raise InputError(f"sources must be among {', '.join(SOURCES)}, got {', '.join(self.sources)}")
+        check_among("sources", self.sources, SOURCES)
         if self.source_scale not in cond.SCALES or self.source_scale not in opt.SCALES:
             raise InputError(f"source_scale must be one of {', '.join(cond.SCALES)}, "
                              f"got {self.source_scale!r}")
@@ -204,7 +215,6 @@ def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str
     """Rows for every episode count 1..N of one person under one set (one pass), from each
     episode's log-likelihood under every hypothesis of the set (``episode_ll [N, H]``)."""
     from ...demos.simulation import capped_flags
-    from ...hypotheses import expertise_group
 
     eps = trajs.episodes()
     lengths = np.array([len(s) for s, _ in eps])
@@ -222,12 +232,9 @@ def _score(mdp, scfg, belief, episode_ll, trajs, theta, beta, value) -> dict[str
     N = len(eps)
     col = {
         "episodes": np.arange(1, N + 1), "n_pairs": np.cumsum(lengths), "n_capped": np.cumsum(capped),
-        "beta_true": np.full(N, beta), "group_true": np.full(N, expertise_group(beta), dtype=object),
-        "beta_hat": np.array(beta_hat),
+        **truth_values(N, theta, beta), "beta_hat": np.array(beta_hat),
+        **feature_values("theta_hat", theta_hat),
     }
-    for i, f in enumerate(FEATURES):
-        col[f"theta_true_{f}"] = np.full(N, theta[i])
-        col[f"theta_hat_{f}"] = theta_hat[:, i]
     col.update(cond.estimate_metrics(mdp, scfg.model, theta, beta, value, theta_hat, beta_hat))
     col["truth_probability"] = np.array(p_truth)
     return col
@@ -243,18 +250,15 @@ COLUMNS = (
     Column("group", "string", "conditions' expertise-group slot (empty for optimisation)"),
     Column("instance", "int32", "optimisation's instance i (−1 for conditions)"),
     Column("set", "string", "`theta_k` (the person's own Ψ_k) or `full` (all of the paper-sim Θ × B)"),
-    Column("episodes", "int32", "episodes seen, n = 1..N"),
-    Column("n_pairs", "int64", "actions seen in the first n episodes"),
-    Column("n_capped", "int32", "episodes among the first n that hit `max_steps` without reaching the goal"),
-    Column("n_states", "int32", "states of the MDP"),
+    EPISODES_SEEN,
+    *episode_columns(),
+    N_STATES,
     Column("n_hypotheses", "int32", "hypotheses of the set"),
-    Column("beta_true", "float64", "β* of the person"),
-    Column("group_true", "string", "expertise group of β*"),
-    *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm)") for f in FEATURES],
-    Column("beta_hat", "float64", "β̂ = E[β] after n episodes"),
-    *[Column(f"theta_hat_{f}", "float64", f"θ̂ = E[θ] component `{f}`") for f in FEATURES],
+    *truth_columns(),
+    BETA_HAT_MEAN,
+    *feature_columns("theta_hat", "θ̂ = E[θ] component `{f}`"),
     *METRIC_COLUMNS,
-    Column("truth_probability", "float64", "posterior probability of (θ*, β*) (NaN if not in the set)"),
+    TRUTH_PROBABILITY,
     Column("set_solve_time_s", "float64", "wall time of the full set's solve on this map (one per map)"),
 )
 
@@ -263,11 +267,10 @@ STUDY = Study(
     version=4,  # 4: over-relaxed solves, no float32 phase (values move within the tolerance)
     description="beyond the paper: conditions' and optimisation's people scored with all 18,186 paper-sim "
                 "hypotheses vs their Ψ_k",
-    config_type=FullsetConfig,
-    scales=SCALES,
-    tasks=tasks,
-    run_task=run_task,
+    config_type=FullsetConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=COLUMNS,
-    sort_by=("environment", "source", "truth", "run", "k", "group", "instance", "set", "episodes"),
-    counts=counts,
+    # The order the committed reports were built with (docs/reproduction/fullset-*): conditions'
+    # in-set and out-of-set people of one slot stay in the order their task wrote them.
+    sort_by=("source", "environment", "run", "k", "group", "instance", "set", "episodes"),
+    report="expertise_irl.experiments.report.fullset:build",
 )

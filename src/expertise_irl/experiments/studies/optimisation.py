@@ -47,11 +47,22 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...errors import InputError
-from ..engine import Column, Study, TaskSpec
-from .fixed_vs_joint import (
-    FEATURES,
+from ..spec import Column, Study, TaskSpec
+from .common import (
+    MAP_COLUMNS,
     METRIC_COLUMNS,
+    SEED,
     SET_COMPOSITION,
+    check_among,
+    composition_values,
+    episode_columns,
+    feature_columns,
+    feature_values,
+    float_columns,
+    truth_columns,
+    truth_values,
+)
+from .fixed_vs_joint import (
     _grid,
     check_set_sizes,
     environment,
@@ -97,9 +108,7 @@ class OptimisationConfig:
         from ...inference.priors import get_prior
         from ...models import check_model
 
-        bad = [m for m in self.methods if m not in METHODS]
-        if bad or not self.methods:
-            raise InputError(f"methods must be among {', '.join(METHODS)}, got {', '.join(self.methods)}")
+        check_among("methods", self.methods, METHODS)
         if self.environments < 1 or self.instances < 1 or self.k < 2:
             raise InputError("need at least one environment and instance, and k >= 2")
         if not self.episode_counts or min(self.episode_counts) < 1:
@@ -213,9 +222,7 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     from ...demos.trajectories import Trajectories
     from ...hypotheses import BETA_PRESETS, HypothesisSet
     from ...inference.belief import DiscreteBelief
-    from ...inference.birl import extended_birl
-    from ...inference.gradient import map_estimate
-    from ...inference.nuts import nuts_posterior
+    from ...inference.methods import BIRLOptions, MAPOptions, NUTSOptions, get_method
 
     e, i = int(params["environment"]), int(params["instance"])
     zm, mdp = environment(cfg, seed, e)
@@ -241,7 +248,8 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
 
     def birl(variant: str):
         def fit(tr, n_iter, rng):
-            return extended_birl(mdp, tr, n_iter=n_iter, variant=variant, rng=rng, **common)
+            opts = BIRLOptions(iterations=n_iter, variant=variant, **common)
+            return get_method("birl").fit(mdp, tr, opts, rng)
 
         def one(n: int):
             r, t = _timed(lambda: fit(trajs.first(n), cfg.birl_iterations,
@@ -251,13 +259,14 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
         return (lambda: fit(trajs.first(2), 3, np.random.default_rng(0))), one
 
     def map_one(n: int):
-        r, t = _timed(lambda: map_estimate(mdp, trajs.first(n), n_starts=cfg.map_starts,
-                                           rng=np.random.default_rng([seeds["map"], n]), **common))
+        opts = MAPOptions(starts=cfg.map_starts, **common)
+        r, t = _timed(lambda: get_method("map").fit(mdp, trajs.first(n), opts,
+                                                    np.random.default_rng([seeds["map"], n])))
         return r.theta, r.beta, t, {}
 
     def nuts_fit(tr, warmup, samples, chains, s):
-        return nuts_posterior(mdp, tr, num_warmup=warmup, num_samples=samples, num_chains=chains,
-                              seed=s, **common)
+        opts = NUTSOptions(chains=chains, warmup=warmup, samples=samples, **common)
+        return get_method("nuts").fit(mdp, tr, opts, s)
 
     def nuts_one(n: int):
         r, t = _timed(lambda: nuts_fit(trajs.first(n), cfg.nuts_warmup, cfg.nuts_samples,
@@ -268,8 +277,8 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     methods = {
         "birl_box": birl("box"),
         "birl_simplex": birl("simplex"),
-        "map": (lambda: map_estimate(mdp, trajs.first(2), n_starts=1, rng=np.random.default_rng(0),
-                                     **common), map_one),
+        "map": (lambda: get_method("map").fit(mdp, trajs.first(2), MAPOptions(starts=1, **common),
+                                              np.random.default_rng(0)), map_one),
         "nuts": (lambda: nuts_fit(trajs.first(2), 5, 5, 1, 0), nuts_one),
     }
     results: dict[str, dict[int, tuple]] = {}
@@ -286,8 +295,6 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
 
 def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndarray]:
     from ...demos.simulation import capped_episodes
-    from ...hypotheses import expertise_group
-    from ...inference.hypothesis_sets import set_composition
     from ...inference.priors import get_prior
 
     keys = [(m, n) for m in results for n in cfg.episode_counts]
@@ -308,19 +315,13 @@ def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndar
         "map_width": np.full(L, zm.width), "map_height": np.full(L, zm.height),
         "n_states": np.full(L, mdp.n_states),
         "n_hypotheses": np.where(continuous, 0, len(hyp)),
-        "beta_true": np.full(L, inst.beta),
-        "group_true": np.full(L, expertise_group(inst.beta), dtype=object),
+        **truth_values(L, inst.theta, inst.beta), **composition_values(L, inst.theta, inst.beta, hyp),
     }
-    for j, f in enumerate(FEATURES):
-        col[f"theta_true_{f}"] = np.full(L, inst.theta[j])
-    for name, v in set_composition(inst.theta, inst.beta, hyp.thetas, hyp.betas).items():
-        col[name] = np.full(L, v)
     col["prior"] = np.where(continuous, cfg.prior, "uniform").astype(object)
     col["prior_text"] = np.where(continuous, get_prior(cfg.prior).text,
                                  f"uniform over the {len(hyp)} hypotheses of Ψ_{cfg.k}").astype(object)
     col["beta_hat"] = beta_hat
-    for j, f in enumerate(FEATURES):
-        col[f"theta_hat_{f}"] = theta_hat[:, j]
+    col.update(feature_values("theta_hat", theta_hat))
     col.update(estimate_metrics(mdp, cfg.model, inst.theta, inst.beta, inst.value, theta_hat, beta_hat))
     col["wall_time_s"] = np.array([results[m][n][2] for m, n in keys], dtype=np.float64)
     for name in ("acceptance_rate", "divergences", "max_rhat"):
@@ -330,46 +331,39 @@ def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndar
 
 # ----------------------------------------------------------------------------- schema
 COLUMNS = (
-    Column("seed", "int64", "the sweep's seed (`--seed`)"),
+    SEED,
     Column("environment", "int32", "environment index e (the `conditions` study's map `(e,)`)"),
     Column("instance", "int32", "instance index i within the environment"),
     Column("method", "string", "`discrete` (Ψ_20), `birl_box` (Algorithm 1 as printed), `birl_simplex`, "
            "`map`, `nuts`"),
     Column("episodes", "int32", "episodes the method saw (the first n of the instance's 40)"),
-    Column("n_pairs", "int64", "actions in those episodes"),
-    Column("n_capped", "int32", "episodes among them that hit `max_steps` without reaching the goal"),
+    *episode_columns("actions in those episodes",
+                     "episodes among them that hit `max_steps` without reaching the goal"),
     Column("mean_episode_length", "float64", "n_pairs / episodes (Table IV's average episode length)"),
-    Column("map_width", "int32", "map width (cells)"),
-    Column("map_height", "int32", "map height (cells)"),
-    Column("n_states", "int32", "states of the MDP"),
+    *MAP_COLUMNS,
     Column("n_hypotheses", "int32", "hypotheses of the discrete set (0 for continuous methods)"),
-    Column("beta_true", "float64", "β* ~ U(beta_low, beta_high)"),
-    Column("group_true", "string", "expertise group of β*"),
-    *[Column(f"theta_true_{f}", "float64", f"θ* component `{f}` (unit l1 norm; θ* ∉ Θ_20)")
-      for f in FEATURES],
+    *truth_columns("β* ~ U(beta_low, beta_high)", "θ* component `{f}` (unit l1 norm; θ* ∉ Θ_20)"),
     *SET_COMPOSITION,
     Column("prior", "string", "the prior's name (`paper` for the continuous methods, `uniform` for the set)"),
     Column("prior_text", "string", "the prior in words"),
     Column("beta_hat", "float64", "β̂ (posterior mean; MAP: the mode)"),
-    *[Column(f"theta_hat_{f}", "float64", f"θ̂ component `{f}` (Algorithm 1 box: unnormalised)")
-      for f in FEATURES],
+    *feature_columns("theta_hat", "θ̂ component `{f}` (Algorithm 1 box: unnormalised)"),
     *METRIC_COLUMNS,
-    Column("wall_time_s", "float64", "the method's wall time at this episode count, after a warm-up "
-           "(discrete: the set's solve plus the belief updates)"),
-    Column("acceptance_rate", "float64", "Algorithm 1's accepted moves / iterations (NaN otherwise)"),
-    Column("divergences", "float64", "NUTS divergent transitions after warm-up (NaN otherwise)"),
-    Column("max_rhat", "float64", "NUTS: largest split-R̂ over β and θ (NaN otherwise)"),
+    *float_columns({
+        "wall_time_s": "the method's wall time at this episode count, after a warm-up (discrete: the set's "
+                       "solve plus the belief updates)",
+        "acceptance_rate": "Algorithm 1's accepted moves / iterations (NaN otherwise)",
+        "divergences": "NUTS divergent transitions after warm-up (NaN otherwise)",
+        "max_rhat": "NUTS: largest split-R̂ over β and θ (NaN otherwise)",
+    }),
 )
 
 STUDY = Study(
     name="optimisation",
     version=2,  # 2: over-relaxed solves (values move within the tolerance)
     description="Sec. VII: Algorithm 1 (as printed), ours (simplex, MAP, NUTS) vs the discrete set Ψ_20",
-    config_type=OptimisationConfig,
-    scales=SCALES,
-    tasks=tasks,
-    run_task=run_task,
+    config_type=OptimisationConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=COLUMNS,
     sort_by=("environment", "instance", "method", "episodes"),
-    counts=counts,
+    report="expertise_irl.experiments.report.optimisation:build",
 )
