@@ -75,43 +75,28 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]
     tmp.replace(path)
 
 
+#: The columns that close a row of ``study.csv`` and of ``tasks.csv``: groups, Table V-VI counts, ingestion.
+_SUMMARY_COLUMNS = (
+    *GROUP_COLUMNS,
+    *COUNTS,
+    *(f"optimal_{c}" for c in COUNTS),
+    "optimal_reached_goal",
+    "filled_gaps",
+    "snapped_samples",
+)
+
+
 def study_columns(feature_names: Sequence[str], models: Sequence[str] = ()) -> list[str]:
-    cols = [
-        "participant",
-        "tasks",
-        "episodes",
-        "beta_hat",
-        *(f"theta_{f}" for f in feature_names),
-        *GROUP_COLUMNS,
-        *COUNTS,
-        *(f"optimal_{c}" for c in COUNTS),
-        "optimal_reached_goal",
-        "filled_gaps",
-        "snapped_samples",
-    ]
+    cols = ["participant", "tasks", "episodes", "beta_hat", *(f"theta_{f}" for f in feature_names),
+            *_SUMMARY_COLUMNS]
     if models:
         cols += [f"log_evidence_{m}" for m in models] + ["best_model"]
     return cols
 
 
 def task_columns(feature_names: Sequence[str]) -> list[str]:
-    return [
-        "participant",
-        "task",
-        "line",
-        "map",
-        "recording",
-        "demos",
-        "episodes",
-        "beta_hat",
-        *(f"theta_{f}" for f in feature_names),
-        *GROUP_COLUMNS,
-        *COUNTS,
-        *(f"optimal_{c}" for c in COUNTS),
-        "optimal_reached_goal",
-        "filled_gaps",
-        "snapped_samples",
-    ]
+    return ["participant", "task", "line", "map", "recording", "demos", "episodes", "beta_hat",
+            *(f"theta_{f}" for f in feature_names), *_SUMMARY_COLUMNS]
 
 
 def _num(x: float, digits: int = 3) -> str:

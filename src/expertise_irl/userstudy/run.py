@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -332,170 +332,149 @@ def _cells_of(plan, mdp, states, actions) -> np.ndarray:
     return plan.state_cells()[s]
 
 
-def _reports(
-    out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names, evidence=None
-):
-    from ..plots.userstudy import render_participant_png
+class _TaskReport(NamedTuple):
+    """One manifest row's share of the reports."""
+
+    panel: dict[str, Any]  # its panel of the participant's figure
+    row: dict[str, Any]  # its row of tasks.csv
+    doc: dict[str, Any]  # its entry in the participant's result.json
+    counts: dict[str, int]  # Table V counts of the observed moves
+    optimal_counts: dict[str, int]  # the same of the optimal paths
+    reached: int  # optimal paths that reach a goal
+
+
+def _task_report(pid: str, t: StudyTask, optimal, pt: dict[str, Any] | None, feats) -> _TaskReport:
+    """The counts, panel, ``tasks.csv`` row and result entry of row ``t`` (``pt``: its own estimate)."""
+    mdp = t.plan.to_mdp()
+    tr = t.trajectories
+    counts = path_counts(t.plan, mdp, tr.state, tr.action)
+    opt = optimal[optimal["task"] == t.index]
+    counts_opt = path_counts(t.plan, mdp, opt["state"].to_numpy(), opt["action"].to_numpy())
+    ok = int(opt.groupby("episode")["reached_goal"].first().sum()) if len(opt) else 0
+    observed = [_cells_of(t.plan, mdp, s, a) for s, a in tr.episodes()]
+    opt_cells = [_cells_of(t.plan, mdp, g["state"].to_numpy(), g["action"].to_numpy())
+                 for _, g in opt.groupby("episode")]
+    title = f"{Path(t.map_path).name} ({t.source.name})"
+    panel = {"plan": t.plan, "title": title, "observed": observed, "optimal": opt_cells}
+    ingestion = {"filled_gaps": t.filled_gaps, "snapped_samples": t.snapped_samples}
+    row = {
+        "participant": pid, "task": t.index, "line": t.line, "map": str(t.map_path),
+        "recording": str(t.source) if t.kind == "recording" else "",
+        "demos": str(t.source) if t.kind == "demos" else "",
+        "episodes": tr.n_episodes,
+        "beta_hat": pt["beta_hat"] if pt else float("nan"),
+        **{f"theta_{f}": (pt["theta_hat"][i] if pt else float("nan")) for i, f in enumerate(feats)},
+        **{c: (pt["groups"][c[2:]] if pt else float("nan")) for c in GROUP_COLUMNS},
+        **counts,
+        **{f"optimal_{k}": v for k, v in counts_opt.items()},
+        "optimal_reached_goal": ok,
+        **ingestion,
+    }
+    doc = {
+        "task": t.index, "line": t.line, "map": str(t.map_path), "map_digest": map_digest(t.plan),
+        t.kind: str(t.source), f"{t.kind}_digest": file_digest(t.source),
+        "episodes": tr.n_episodes, "actions": len(tr),
+        "counts": counts, "optimal_counts": counts_opt, "optimal_reached_goal": ok,
+        **ingestion,
+        **({"discretised": t.discretised.summary()} if t.discretised is not None else {}),
+        **({"beta_hat": pt["beta_hat"], "theta_hat": pt["theta_hat"], "group_probabilities": pt["groups"]}
+           if pt else {}),
+    }
+    return _TaskReport(panel, row, doc, counts, counts_opt, ok)
+
+
+def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine) -> dict[str, Any]:
+    """The ``settings`` of a participant's result.json."""
+    settings = {
+        "command": "study", "manifest": str(manifest.path), "participant": pid,
+        "method": opts.method, "model": opts.model, "rate": opts.rate, "max_dt": opts.max_dt,
+        "fill_gaps": opts.fill_gaps, "snap": opts.snap, "optimal_beta": OPTIMAL_BETA,
+        **({"models": list(opts.models)} if opts.models else {}),
+    }
+    if opts.method == "discrete":
+        settings.update({"thetas": opts.thetas, "betas": opts.betas, "n_theta": hyp.n_theta,
+                         "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform",
+                         "gamma": [t.plan.gamma for t in mine]})
+    return settings
+
+
+def _result_doc(est, opts: StudyOptions, settings, names, n_tasks: int, episodes: int, d: Path):
+    """The participant's result document: the discrete one as it is, or the continuous method's
+    result fields (draws written beside ``d/result.json``)."""
     from ..results import continuous_result, samples_path_for
 
+    if opts.method == "discrete":
+        doc = est["doc"]
+        doc["settings"] = settings
+        return doc
+    res = dict(est["doc"])
+    if res.get("draws"):  # stored as JSON; continuous_result takes (chain, θ, β) arrays
+        dr = res["draws"]
+        res["draws"] = (np.asarray(dr["chain"]), np.asarray(dr["theta"]), np.asarray(dr["beta"]))
+    doc = continuous_result(res, method=opts.method, feature_names=names, settings=settings,
+                            data={"tasks": n_tasks, "episodes": episodes},
+                            samples_path=samples_path_for(d / "result.json"))
+    doc["modes"] = []
+    return doc
+
+
+def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, opts: StudyOptions, hyp,
+                        names, evidence) -> tuple[dict[str, Any], list[dict[str, Any]], list]:
+    """Write ``pdir/ID/result.json`` and ``pdir/ID/ID.png``; return the participant's ``study.csv``
+    row, their ``tasks.csv`` rows and the modes of their posterior."""
+    from ..plots.userstudy import render_participant_png
+
+    feats = list(names)
+    mine = manifest.tasks_of(pid)
+    parts = [_task_report(pid, t, optimal, est["per_task"][j] if est["per_task"] else None, feats)
+             for j, t in enumerate(mine)]
+    total = {k: sum(p.counts[k] for p in parts) for k in COUNTS}
+    total_opt = {k: sum(p.optimal_counts[k] for p in parts) for k in COUNTS}
+    reached = sum(p.reached for p in parts)
+    filled, snapped = sum(t.filled_gaps for t in mine), sum(t.snapped_samples for t in mine)
+    episodes = sum(t.trajectories.n_episodes for t in mine)
+    settings = _settings(manifest, pid, opts, hyp, mine)
+    d = pdir / pid
+    d.mkdir(exist_ok=True)
+    doc = _result_doc(est, opts, settings, names, len(mine), episodes, d)
+    doc["participant"] = pid
+    doc["tasks"] = [p.doc for p in parts]
+    doc["counts"] = total
+    doc["optimal_counts"] = total_opt
+    doc["filled_gaps"], doc["snapped_samples"] = filled, snapped
+    if evidence is not None:
+        doc["model_evidence"] = finite_or_null(evidence[pid])
+    write_json(d / "result.json", doc)
+    render_participant_png(d / f"{pid}.png", pid, [p.panel for p in parts], doc)
+    groups = est["groups"]
+    row = {
+        "participant": pid, "tasks": len(mine), "episodes": episodes,
+        "beta_hat": float(doc["beta_hat"]),
+        **{f"theta_{f}": float(doc["theta_hat"][i]) for i, f in enumerate(feats)},
+        **{c: (groups[c[2:]] if groups else float("nan")) for c in GROUP_COLUMNS},
+        **total,
+        **{f"optimal_{k}": v for k, v in total_opt.items()},
+        "optimal_reached_goal": reached, "filled_gaps": filled, "snapped_samples": snapped,
+    }
+    return row, [p.row for p in parts], doc.get("modes", [])
+
+
+def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names,
+             evidence=None) -> list[dict[str, Any]]:
+    """Every participant's files, then ``study.csv``, ``tasks.csv``, ``study.md`` (and ``models.csv``)."""
     pdir = out / "participants"
     pdir.mkdir(exist_ok=True)
     study_rows, task_rows, modes = [], [], {}
-    feats = list(names)
     for pid in manifest.participants:
-        est = estimates[pid]
-        mine = manifest.tasks_of(pid)
-        panels, per_task_docs = [], []
-        total = dict.fromkeys(COUNTS, 0)
-        total_opt = dict.fromkeys(COUNTS, 0)
-        reached = filled = snapped = episodes = 0
-        for j, t in enumerate(mine):
-            mdp = t.plan.to_mdp()
-            tr = t.trajectories
-            counts = path_counts(t.plan, mdp, tr.state, tr.action)
-            opt = optimal[optimal["task"] == t.index]
-            counts_opt = path_counts(t.plan, mdp, opt["state"].to_numpy(), opt["action"].to_numpy())
-            ok = int(opt.groupby("episode")["reached_goal"].first().sum()) if len(opt) else 0
-            observed = [_cells_of(t.plan, mdp, s, a) for s, a in tr.episodes()]
-            opt_cells = [
-                _cells_of(t.plan, mdp, g["state"].to_numpy(), g["action"].to_numpy())
-                for _, g in opt.groupby("episode")
-            ]
-            title = f"{Path(t.map_path).name} ({t.source.name})"
-            panels.append({"plan": t.plan, "title": title, "observed": observed, "optimal": opt_cells})
-            for k in COUNTS:
-                total[k] += counts[k]
-                total_opt[k] += counts_opt[k]
-            reached += ok
-            filled += t.filled_gaps
-            snapped += t.snapped_samples
-            episodes += tr.n_episodes
-            pt = est["per_task"][j] if est["per_task"] else None
-            trow = {
-                "participant": pid,
-                "task": t.index,
-                "line": t.line,
-                "map": str(t.map_path),
-                "recording": str(t.source) if t.kind == "recording" else "",
-                "demos": str(t.source) if t.kind == "demos" else "",
-                "episodes": tr.n_episodes,
-                "beta_hat": pt["beta_hat"] if pt else float("nan"),
-                **{f"theta_{f}": (pt["theta_hat"][i] if pt else float("nan")) for i, f in enumerate(feats)},
-                **{c: (pt["groups"][c[2:]] if pt else float("nan")) for c in GROUP_COLUMNS},
-                **counts,
-                **{f"optimal_{k}": v for k, v in counts_opt.items()},
-                "optimal_reached_goal": ok,
-                "filled_gaps": t.filled_gaps,
-                "snapped_samples": t.snapped_samples,
-            }
-            task_rows.append(trow)
-            per_task_docs.append(
-                {
-                    "task": t.index,
-                    "line": t.line,
-                    "map": str(t.map_path),
-                    "map_digest": map_digest(t.plan),
-                    t.kind: str(t.source),
-                    f"{t.kind}_digest": file_digest(t.source),
-                    "episodes": tr.n_episodes,
-                    "actions": len(tr),
-                    "counts": counts,
-                    "optimal_counts": counts_opt,
-                    "optimal_reached_goal": ok,
-                    "filled_gaps": t.filled_gaps,
-                    "snapped_samples": t.snapped_samples,
-                    **({"discretised": t.discretised.summary()} if t.discretised is not None else {}),
-                    **(
-                        {
-                            "beta_hat": pt["beta_hat"],
-                            "theta_hat": pt["theta_hat"],
-                            "group_probabilities": pt["groups"],
-                        }
-                        if pt
-                        else {}
-                    ),
-                }
-            )
-        settings = {
-            "command": "study",
-            "manifest": str(manifest.path),
-            "participant": pid,
-            "method": opts.method,
-            "model": opts.model,
-            "rate": opts.rate,
-            "max_dt": opts.max_dt,
-            "fill_gaps": opts.fill_gaps,
-            "snap": opts.snap,
-            "optimal_beta": OPTIMAL_BETA,
-            **({"models": list(opts.models)} if opts.models else {}),
-        }
-        if opts.method == "discrete":
-            settings.update(
-                {
-                    "thetas": opts.thetas,
-                    "betas": opts.betas,
-                    "n_theta": hyp.n_theta,
-                    "n_beta": hyp.n_beta,
-                    "n_hypotheses": len(hyp),
-                    "prior": "uniform",
-                    "gamma": [t.plan.gamma for t in mine],
-                }
-            )
-        d = pdir / pid
-        d.mkdir(exist_ok=True)
-        if opts.method == "discrete":
-            doc = est["doc"]
-            doc["settings"] = settings
-        else:
-            res = dict(est["doc"])
-            if res.get("draws"):  # stored as JSON; continuous_result takes (chain, θ, β) arrays
-                dr = res["draws"]
-                res["draws"] = (np.asarray(dr["chain"]), np.asarray(dr["theta"]), np.asarray(dr["beta"]))
-            doc = continuous_result(
-                res,
-                method=opts.method,
-                feature_names=names,
-                settings=settings,
-                data={"tasks": len(mine), "episodes": episodes},
-                samples_path=samples_path_for(d / "result.json"),
-            )
-            doc["modes"] = []
-        doc["participant"] = pid
-        doc["tasks"] = per_task_docs
-        doc["counts"] = total
-        doc["optimal_counts"] = total_opt
-        doc["filled_gaps"], doc["snapped_samples"] = filled, snapped
-        if evidence is not None:
-            doc["model_evidence"] = finite_or_null(evidence[pid])
-        write_json(d / "result.json", doc)
-        render_participant_png(d / f"{pid}.png", pid, panels, doc)
-        modes[pid] = doc.get("modes", [])
-        groups = est["groups"]
-        study_rows.append(
-            {
-                "participant": pid,
-                "tasks": len(mine),
-                "episodes": episodes,
-                "beta_hat": float(doc["beta_hat"]),
-                **{f"theta_{f}": float(doc["theta_hat"][i]) for i, f in enumerate(feats)},
-                **{c: (groups[c[2:]] if groups else float("nan")) for c in GROUP_COLUMNS},
-                **total,
-                **{f"optimal_{k}": v for k, v in total_opt.items()},
-                "optimal_reached_goal": reached,
-                "filled_gaps": filled,
-                "snapped_samples": snapped,
-            }
-        )
+        row, rows, modes[pid] = _participant_report(pdir, manifest, pid, estimates[pid], optimal, opts, hyp,
+                                                    names, evidence)
+        study_rows.append(row)
+        task_rows += rows
+    feats = list(names)
     write_csv(out / "study.csv", study_rows, study_columns(feats))
     write_csv(out / "tasks.csv", task_rows, task_columns(feats))
-    md = study_markdown(
-        study_rows,
-        feats,
-        method=opts.method,
-        n_hypotheses=len(hyp) if hyp else None,
-        modes=modes,
-        title=f"Study {manifest.path.name}",
-    )
+    md = study_markdown(study_rows, feats, method=opts.method, n_hypotheses=len(hyp) if hyp else None,
+                        modes=modes, title=f"Study {manifest.path.name}")
     if evidence is not None:
         write_csv(out / "models.csv", model_evidence.models_rows(evidence),
                   model_evidence.models_columns(opts.models))
