@@ -33,9 +33,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
-from expertise_irl.demos.simulation import simulate
 
-from expertise_irl.inference.continuous import MethodOptions, run_method
+from expertise_irl.demos.simulation import simulate
+from expertise_irl.inference.methods import NUTSOptions, get_method
 from expertise_irl.worlds.zones import load_bundled
 
 warnings.filterwarnings("ignore", category=FutureWarning)
@@ -51,7 +51,7 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=500)
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
-    opts = MethodOptions(chains=args.chains, warmup=args.warmup, samples=args.samples)
+    opts = NUTSOptions(chains=args.chains, warmup=args.warmup, samples=args.samples)
     info = machine_info()
     print("machine:", ", ".join(f"{k}={v}" for k, v in info.items()))
     mdp = load_bundled(args.map).to_mdp()
@@ -70,7 +70,7 @@ def main() -> None:
                 beta = float(rng.normal(5.005, 1.5))
         trajs = simulate(mdp, theta, beta, 40, rng)
         t = time.perf_counter()
-        res = run_method("nuts", mdp, trajs, opts, seed)
+        res = get_method("nuts").run(mdp, trajs, opts, seed).fields
         wall = time.perf_counter() - t
         ci = res["credible_intervals"]
         cov_beta = bool(ci["beta"][0] <= beta <= ci["beta"][1])

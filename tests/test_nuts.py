@@ -13,8 +13,8 @@ import pytest
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
 from expertise_irl.inference import nuts_kernel
-from expertise_irl.inference.continuous import MethodOptions, run_method
 from expertise_irl.inference.gradient import map_estimate
+from expertise_irl.inference.methods import BIRLOptions, get_method
 from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.inference.nuts_kernel import _laplace_start
 from expertise_irl.inference.task_likelihood import pair_counts, tasks_log_likelihood
@@ -121,7 +121,7 @@ def test_tasks_must_share_features_and_pair_up(corridor, corridor_demos):
     with pytest.raises(InputError, match="task 2 has features a, b, c, d, e"):
         tasks_log_likelihood([corridor, other], [corridor_demos, corridor_demos])
     with pytest.raises(InputError, match=r"birl .* takes one task"):
-        run_method("birl", [corridor], [corridor_demos], MethodOptions(iterations=10), 0)
+        get_method("birl").run([corridor], [corridor_demos], BIRLOptions(iterations=10), 0)
 
 
 def test_counts_passed_in_replace_the_ones_built_in(corridor, corridor_demos):

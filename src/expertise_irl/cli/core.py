@@ -214,91 +214,64 @@ def infer(
     diagnostics.warnings.
     """
     from ..demos.csv_io import read_demos_csv
-    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
-    from ..hypotheses import sample_thetas as sample
-    from ..inference.belief import DiscreteBelief
-    from ..inference.continuous import METHODS
-    from ..inference.diagnostics import discrete_warnings
-    from ..results import check_writable, discrete_result, file_digest, map_digest, write_json
+    from ..inference.methods import document, get_method
+    from ..results import INLINE_DRAWS, check_writable, samples_path_for, write_json
 
-    if method not in METHODS:
-        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    chosen = get_method(method)
     _refuse_options_of_other_methods(ctx, method)
-    check_writable(out_path, force=force, inputs=[demos, *_map_files(map_spec), mdp_path])
-    if not (0 < tol <= MAX_TOL):
-        raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {tol:g}")
+    inputs = [demos, *_map_files(map_spec), mdp_path]
+    check_writable(out_path, force=force, inputs=inputs)
+    opts = chosen.options_from(ctx.params)
     mdp, zone_map = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
-    prepare_solver(measure=method == "discrete")  # the other methods solve one hypothesis at a time
-    if method != "discrete":
-        from ..inference.continuous import MethodOptions
-
-        opts = MethodOptions(iterations=iterations, delta=delta, beta_step=beta_step, variant=variant,
-                             starts=starts, chains=chains, warmup=warmup, samples=samples, prior=prior,
-                             model=model)
-        _infer_continuous(method, mdp, zone_map, trajs, opts, seed=seed, out_path=out_path, force=force,
-                          inputs=[demos, *_map_files(map_spec), mdp_path],
-                          source={"mdp": str(mdp_path) if mdp_path else str(map_spec),
-                                  "mdp_digest": file_digest(mdp_path) if mdp_path else map_digest(zone_map),
-                                  "demos": str(demos), "demos_digest": file_digest(demos)})
-        return
-    th = resolve_thetas(thetas, mdp.n_features)
-    if sample_thetas is not None:
-        if sample_thetas > len(th):
-            _note(f"--sample-thetas {sample_thetas} exceeds the {len(th)} directions of "
-                  f"--thetas {thetas}; using all of them")
-        th = sample(th, min(sample_thetas, len(th)), np.random.default_rng(seed))
-    hyp = HypothesisSet(th, resolve_betas(betas))
-    t0 = time.perf_counter()
-    with _progress() as bar:
-        start = DiscreteBelief.from_mdp(mdp, hyp, tol=tol, chunk_size=chunk_size, model=model,
-                                        progress=_solve_progress(bar, "solving soft value iteration"))
-    post = start.update(trajs, per_action=per_action)
-    trace = start.trace(trajs) if per_action else None
-    elapsed = time.perf_counter() - t0
-    settings = {
-        "command": "infer", "method": "discrete",
-        "mdp": str(mdp_path) if mdp_path else str(map_spec),
-        "mdp_digest": file_digest(mdp_path) if mdp_path else map_digest(zone_map),
-        "demos": str(demos), "demos_digest": file_digest(demos),
-        "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-        "thetas": thetas, "betas": betas, "sample_thetas": sample_thetas, "seed": seed,
-        "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
-        "prior": "uniform", "model": model, "per_action": per_action, "tol": tol, "gamma": mdp.gamma,
-    }
-    doc = discrete_result(post, feature_names=mdp.feature_names, settings=settings,
-                          data={"episodes": trajs.n_episodes, "actions": len(trajs)},
-                          trace=trace, trace_index=(trajs.episode, trajs.step))
-    doc["diagnostics"] = {"warnings": discrete_warnings(post, mdp.feature_names)}
-    doc["run_time_s"] = elapsed
+    prepare_solver(measure=chosen.measure_lanes)  # the others solve one hypothesis at a time
+    samples_path = samples_path_for(out_path)
+    if opts.max_draws > INLINE_DRAWS:
+        check_writable(samples_path, force=force, inputs=inputs)
+    setup = chosen.setup(mdp, opts, seed, _note)  # notes (the prior, a capped set) before the bar
+    with _progress(chosen.unit) as bar:
+        run = chosen.run(mdp, trajs, opts, seed, progress=_solve_progress(bar, chosen.progress_label(opts)),
+                         setup=setup)
+    settings = {"command": "infer", "method": method, **_source(map_spec, mdp_path, zone_map, demos),
+                "seed": seed, "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
+                "gamma": mdp.gamma}
+    doc = document(run, feature_names=mdp.feature_names, settings=settings,
+                   data={"episodes": trajs.n_episodes, "actions": len(trajs)}, samples_path=samples_path)
     write_json(out_path, doc)
-    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(mdp.feature_names, post.mean_theta, strict=True))
-    _say(f"β̂ = {post.mean_beta:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
-    if post.n_impossible:
-        _note(f"{post.n_impossible} of {len(hyp)} hypotheses cannot produce the demonstrations")
-    for w in doc["diagnostics"]["warnings"]:
+    _report_result(doc, out_path, len(trajs))
+
+
+def _source(map_spec, mdp_path, zone_map, demos) -> dict:
+    """The inputs of a result: the MDP and the demonstrations, each with its digest."""
+    from ..results import file_digest, map_digest
+
+    return {"mdp": str(mdp_path) if mdp_path else str(map_spec),
+            "mdp_digest": file_digest(mdp_path) if mdp_path else map_digest(zone_map),
+            "demos": str(demos), "demos_digest": file_digest(demos)}
+
+
+def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
+    """The estimate, its interval or impossible hypotheses, the warnings and what was written."""
+    names = doc["feature_names"]
+    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(names, doc["theta_hat"], strict=True))
+    _say(f"β̂ = {doc['beta_hat']:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
+    n_hypotheses = doc["settings"].get("n_hypotheses")
+    if doc.get("n_impossible"):
+        _note(f"{doc['n_impossible']} of {n_hypotheses} hypotheses cannot produce the demonstrations")
+    ci = doc.get("credible_intervals")
+    if ci:
+        _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
+    for w in doc["diagnostics"].get("warnings", []):
         _warn(w)
-    _say(f"wrote {out_path} ({len(hyp)} hypotheses, {len(trajs)} actions, {elapsed:.1f} s)")
-
-
-MAX_TOL = 0.1  # nats; a looser tolerance would make the log-likelihoods meaningless
-
-
-#: The options that only some methods read (the others refuse them when given).
-METHOD_OPTIONS = {
-    "discrete": ("thetas", "betas", "sample_thetas", "per_action", "tol", "chunk_size"),
-    "birl": ("iterations", "delta", "beta_step", "variant", "prior"),
-    "map": ("starts", "prior"),
-    "nuts": ("chains", "warmup", "samples", "prior"),
-}
+    extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
+    what = f"{n_hypotheses} hypotheses" if doc["method"] == "discrete" else doc["method"]
+    _say(f"wrote {out_path}{extra} ({what}, {n_actions} actions, {doc['run_time_s']:.1f} s)")
 
 
 def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:
-    owners: dict[str, list[str]] = {}
-    for m, names in METHOD_OPTIONS.items():
-        for name in names:
-            owners.setdefault(name, []).append(m)
-    for name, methods in owners.items():
+    from ..inference.methods import option_owners
+
+    for name, methods in option_owners().items():
         if method in methods:
             continue
         source = ctx.get_parameter_source(name)  # typer's own click: compare by name
@@ -306,43 +279,6 @@ def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:
             flag = "--" + name.replace("_", "-")
             which = " or ".join(f"--method {m}" for m in methods)
             raise InputError(f"{flag} applies only to {which}, not to --method {method}")
-
-
-def _infer_continuous(method, mdp, zone_map, trajs, opts, *, seed, out_path, force, source,
-                      inputs) -> None:
-    from dataclasses import asdict
-
-    from ..inference.continuous import run_method
-    from ..inference.priors import PRIORS
-    from ..results import INLINE_DRAWS, check_writable, continuous_result, samples_path_for, write_json
-
-    samples_path = samples_path_for(out_path)
-    if (method == "nuts" and opts.chains * opts.samples > INLINE_DRAWS) or (
-            method == "birl" and opts.iterations > INLINE_DRAWS):
-        check_writable(samples_path, force=force, inputs=inputs)
-    opts.validate()
-    prior_text = PRIORS[opts.prior].text
-    _note(f"prior ({opts.prior}): {prior_text}; model {opts.model}")
-    unit, label = {"birl": ("iterations", "Algorithm 1"), "map": ("starts", "MAP (L-BFGS-B)"),
-                   "nuts": ("iterations", f"NUTS ({opts.chains} chains, warm-up included)")}[method]
-    with _progress(unit) as bar:
-        res = run_method(method, mdp, trajs, opts, seed, progress=_solve_progress(bar, label))
-    settings = {"command": "infer", "method": method, **source, "seed": seed, **asdict(opts),
-                "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-                "gamma": mdp.gamma, "prior_text": prior_text}
-    doc = continuous_result(res, method=method, feature_names=mdp.feature_names, settings=settings,
-                            data={"episodes": trajs.n_episodes, "actions": len(trajs)},
-                            samples_path=samples_path)
-    write_json(out_path, doc)
-    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(mdp.feature_names, doc["theta_hat"], strict=True))
-    _say(f"β̂ = {doc['beta_hat']:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
-    ci = doc.get("credible_intervals")
-    if ci:
-        _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
-    for w in doc["diagnostics"].get("warnings", []):
-        _warn(w)
-    extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
-    _say(f"wrote {out_path}{extra} ({method}, {len(trajs)} actions, {doc['run_time_s']:.1f} s)")
 
 
 @app.command()

@@ -27,9 +27,10 @@ BETAS_HELP = "B: a preset (paper-sim, paper-real) or comma-separated temperature
 
 
 def _hypotheses(thetas: str, betas: str, n_features: int):
-    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    """The discrete method's hypothesis set (the live page and next-start run that method)."""
+    from ..inference.methods import DiscreteOptions
 
-    return HypothesisSet(resolve_thetas(thetas, n_features), resolve_betas(betas))
+    return DiscreteOptions(thetas=thetas, betas=betas).hypotheses(n_features)
 
 
 @app.command()

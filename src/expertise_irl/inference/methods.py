@@ -1,0 +1,400 @@
+"""The inference methods behind one interface: an options dataclass and a run function each.
+
+:data:`METHODS` maps a name to its :class:`Method`: ``discrete`` (the paper's hypothesis set,
+Eq. 13), ``birl`` (Algorithm 1, box or simplex), ``map`` (L-BFGS on the exact gradient) and
+``nuts`` (the full posterior). Every method is called the same way::
+
+    method = get_method("nuts")
+    run = method.run(mdp, trajs, method.options_from({"chains": 2}), seed)
+
+``options_from`` takes the options a method reads, by the names of its options dataclass's
+fields, which are the command line's option names; the options validate themselves when they
+are made (:class:`~expertise_irl.errors.InputError` naming the flag). ``run`` returns a
+:class:`MethodRun`: the method's own result and the fields of the result document,
+``theta_hat``, ``beta_hat``, the ``map`` point, ``samples`` (as ``draws``) and 90%
+``credible_intervals`` for the samplers, ``diagnostics`` and ``run_time_s``; :func:`document`
+writes them with :mod:`expertise_irl.results`. ``fit`` alone runs the method without
+describing it; ``setup`` settles what comes before the long part (the discrete set, the
+notes a user should see before a progress bar). Nothing here imports JAX until a method runs.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, fields
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..errors import InputError
+from ..models import DEFAULT_MODEL, check_model
+from .priors import BETA_RANGE, DEFAULT_PRIOR, PRIORS
+
+CREDIBLE = 0.9
+#: Loosest solver tolerance of the discrete set (nats); looser makes the log-likelihoods meaningless.
+MAX_TOL = 0.1
+
+#: ``np.random.default_rng(seed)`` for birl and map (an int, a list of ints or a Generator); nuts: an int.
+Seed = int | Sequence[int] | np.random.Generator
+Progress = Callable[[int, int], None] | None
+Note = Callable[[str], None] | None
+
+
+# ----------------------------------------------------------------------------- options
+def _check_prior_and_model(prior: str, model: str) -> None:
+    if prior not in PRIORS:
+        raise InputError(f"--prior must be one of {', '.join(PRIORS)}, got {prior!r}")
+    check_model(model, "--model")
+
+
+@dataclass(frozen=True)
+class DiscreteOptions:
+    """The paper's hypothesis set Ψ = Θ × B under a uniform prior (Eq. 13)."""
+
+    thetas: str = "paper-real"  # a preset or comma-separated component values
+    betas: str = "paper-sim"  # a preset or comma-separated temperatures
+    sample_thetas: int | None = None  # use k directions of Θ drawn with the seed
+    per_action: bool = False  # record the estimate after every action (a trace)
+    tol: float = 1e-8  # soft value iteration tolerance (nats)
+    chunk_size: int | None = None  # hypotheses in flight in the solver
+    model: str = DEFAULT_MODEL
+
+    def __post_init__(self) -> None:
+        if not (0 < self.tol <= MAX_TOL):
+            raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {self.tol:g}")
+
+    max_draws = 0
+
+    def hypotheses(self, n_features: int, seed: int = 0, note: Note = None):
+        """The set Ψ over ``n_features``; ``note`` hears when ``sample_thetas`` asks for too many."""
+        from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas, sample_thetas
+
+        th = resolve_thetas(self.thetas, n_features)
+        k = self.sample_thetas
+        if k is not None:
+            if k > len(th) and note is not None:
+                note(f"--sample-thetas {k} exceeds the {len(th)} directions of --thetas {self.thetas}; "
+                     "using all of them")
+            th = sample_thetas(th, min(k, len(th)), np.random.default_rng(seed))
+        return HypothesisSet(th, resolve_betas(self.betas))
+
+
+@dataclass(frozen=True)
+class BIRLOptions:
+    """Algorithm 1 (defaults follow the paper where it gives them)."""
+
+    iterations: int = 1000  # Algorithm 1's K
+    delta: float = 0.05  # θ grid step
+    beta_step: float = 0.1  # β grid step
+    variant: str = "box"  # "box" (as printed) or "simplex"
+    prior: str = DEFAULT_PRIOR
+    model: str = DEFAULT_MODEL
+
+    def __post_init__(self) -> None:
+        from .birl import VARIANTS
+
+        for name, x in (("--delta", self.delta), ("--beta-step", self.beta_step)):
+            if not (math.isfinite(x) and x > 0):
+                raise InputError(f"{name} must be a finite number > 0, got {x:g}")
+        n = 1.0 / self.delta
+        if abs(n - round(n)) > 1e-9 * max(1.0, n):
+            raise InputError(f"--delta must divide 1 (1/--delta an integer), got {self.delta:g}")
+        lo, hi = BETA_RANGE
+        if lo + self.beta_step > hi:
+            raise InputError(f"--beta-step {self.beta_step:g} leaves a single β in the prior's range "
+                             f"[{lo:g}, {hi:g}]")
+        if self.variant not in VARIANTS:
+            raise InputError(f"--variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
+        _check_prior_and_model(self.prior, self.model)
+
+    @property
+    def max_draws(self) -> int:
+        return self.iterations
+
+
+@dataclass(frozen=True)
+class MAPOptions:
+    """MAP by L-BFGS on the simplex and β > 0, from random starts."""
+
+    starts: int = 4
+    prior: str = DEFAULT_PRIOR
+    model: str = DEFAULT_MODEL
+
+    def __post_init__(self) -> None:
+        _check_prior_and_model(self.prior, self.model)
+
+    max_draws = 0
+
+
+@dataclass(frozen=True)
+class NUTSOptions:
+    """NUTS on the continuous space."""
+
+    chains: int = 4
+    warmup: int = 500  # warm-up iterations per chain
+    samples: int = 500  # draws per chain
+    prior: str = DEFAULT_PRIOR
+    model: str = DEFAULT_MODEL
+
+    def __post_init__(self) -> None:
+        _check_prior_and_model(self.prior, self.model)
+
+    @property
+    def max_draws(self) -> int:
+        return self.chains * self.samples
+
+
+# ----------------------------------------------------------------------------- fits
+class DiscreteFit(NamedTuple):
+    """The discrete method's result: the posterior and, with ``per_action``, its trace."""
+
+    posterior: Any  # DiscreteBelief
+    trace: Any  # Trace | None
+    trace_index: tuple[np.ndarray, np.ndarray]  # episode and step of each traced action
+
+
+def _setup_discrete(mdp, opts: DiscreteOptions, seed: Seed, note: Note = None):
+    return opts.hypotheses(mdp.n_features, seed, note)
+
+
+def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progress = None,
+                  setup=None) -> DiscreteFit:
+    from .belief import DiscreteBelief
+
+    hyp = _setup_discrete(mdp, opts, seed) if setup is None else setup
+    start = DiscreteBelief.from_mdp(mdp, hyp, tol=opts.tol, chunk_size=opts.chunk_size, model=opts.model,
+                                    progress=progress)
+    post = start.update(trajs, per_action=opts.per_action)
+    trace = start.trace(trajs) if opts.per_action else None
+    return DiscreteFit(post, trace, (trajs.episode, trajs.step))
+
+
+def _announce(mdp, opts, seed: Seed, note: Note = None) -> str:
+    """The continuous methods' setup: the prior in words, told to ``note``."""
+    text = PRIORS[opts.prior].text
+    if note is not None:
+        note(f"prior ({opts.prior}): {text}; model {opts.model}")
+    return text
+
+
+def _fit_birl(mdp, trajs, opts: BIRLOptions, seed: Seed, progress: Progress = None, setup=None):
+    from ..mdp import TabularMDP
+    from .birl import extended_birl
+    from .task_likelihood import as_tasks
+
+    as_tasks(mdp, trajs)
+    if not isinstance(mdp, TabularMDP):
+        raise InputError("--method birl (Algorithm 1) takes one task; use map or nuts for several")
+    return extended_birl(mdp, trajs, n_iter=opts.iterations, delta=opts.delta, beta_step=opts.beta_step,
+                         variant=opts.variant, rng=np.random.default_rng(seed), progress=progress,
+                         prior=opts.prior, model=opts.model)
+
+
+def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None, setup=None):
+    from .gradient import map_estimate
+    from .task_likelihood import as_tasks
+
+    as_tasks(mdp, trajs)
+    return map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), progress=progress,
+                        prior=opts.prior, model=opts.model)
+
+
+def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = None, setup=None):
+    from .nuts import nuts_posterior
+    from .task_likelihood import as_tasks
+
+    as_tasks(mdp, trajs)
+    return nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
+                          num_chains=opts.chains, seed=seed, progress=progress, prior=opts.prior,
+                          model=opts.model)
+
+
+# ----------------------------------------------------------------------------- descriptions
+def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[str, Any]:
+    from .diagnostics import discrete_warnings
+
+    return {"diagnostics": {"warnings": discrete_warnings(fit.posterior, names)}}
+
+
+def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
+    from .diagnostics import birl_warnings, chain_statistics
+    from .gradient import credible_intervals
+
+    theta, beta = r.kept_theta, r.kept_beta
+    stats = chain_statistics(theta, beta, halves=True)  # one chain: R-hat compares its halves
+    diag = {"acceptance_rate": r.acceptance_rate, "out_of_bounds": r.n_out_of_bounds,
+            "burn_in": r.n_burn, "solves": r.n_solves, "sweeps": r.n_sweeps,
+            "variant": r.variant, "moves": r.moves, "r_hat": stats["r_hat"],
+            "r_hat_method": "split halves of the kept chain", "ess_bulk": stats["ess_bulk"],
+            "unavailable": stats["unavailable"]}
+    diag["warnings"] = birl_warnings(diag, names)
+    return {
+        "theta_hat": r.mean_theta.tolist(), "beta_hat": float(r.mean_beta),
+        "theta_hat_normalized": r.mean_theta_normalized.tolist(),
+        "beta_hat_normalized": float(r.mean_beta_normalized),
+        "map": {"theta": r.best_theta.tolist(), "beta": float(r.best_beta),
+                "log_posterior": float(r.best_log_posterior)},
+        "credible_intervals": credible_intervals(theta, beta, CREDIBLE),
+        "diagnostics": diag,
+        "draws": (np.zeros(len(beta), dtype=int), theta, beta),
+    }
+
+
+def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
+    from .diagnostics import map_unavailable, map_warnings
+
+    diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
+            "unavailable": map_unavailable(opts.starts)}
+    diag["warnings"] = map_warnings(diag, r.beta, PRIORS[opts.prior].beta_range)
+    return {
+        "theta_hat": r.theta.tolist(), "beta_hat": r.beta,
+        "map": {"theta": r.theta.tolist(), "beta": r.beta, "log_posterior": r.log_posterior},
+        "diagnostics": diag,
+    }
+
+
+def _describe_nuts(r, opts: NUTSOptions, names) -> dict[str, Any]:
+    from .diagnostics import nuts_warnings
+
+    C, D, K = r.theta.shape
+    theta, beta = r.theta.reshape(-1, K), r.beta.reshape(-1)
+    best = int(np.argmax(r.log_density.reshape(-1)))
+    diag = {"r_hat": r.r_hat, "ess_bulk": r.ess, "divergences": r.divergences,
+            "chains": C, "draws_per_chain": D, "mean_tree_size": r.mean_tree_size,
+            "mean_accept_prob": r.mean_accept_prob, "unavailable": dict(r.unavailable)}
+    diag["warnings"] = nuts_warnings(diag, names)
+    return {
+        "theta_hat": r.mean_theta.tolist(), "beta_hat": r.mean_beta,
+        "map": {"theta": theta[best].tolist(), "beta": float(beta[best]),
+                "log_posterior": float(r.log_density.reshape(-1)[best])},
+        "credible_intervals": r.credible_intervals(CREDIBLE),
+        "diagnostics": diag,
+        "draws": (np.repeat(np.arange(C), D), theta, beta),
+    }
+
+
+# ----------------------------------------------------------------------------- settings
+def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any]:
+    hyp = fit.posterior.hypotheses
+    return {"thetas": opts.thetas, "betas": opts.betas, "sample_thetas": opts.sample_thetas,
+            "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform",
+            "model": opts.model, "per_action": opts.per_action, "tol": opts.tol}
+
+
+def _continuous_settings(fit, opts) -> dict[str, Any]:
+    """Every continuous method's options (this one's as given, the others' defaults) and the prior."""
+    out: dict[str, Any] = {}
+    for cls in (BIRLOptions, MAPOptions, NUTSOptions):
+        out.update(asdict(cls()))
+    return {**out, **asdict(opts), "prior_text": PRIORS[opts.prior].text}
+
+
+# ----------------------------------------------------------------------------- registry
+class MethodRun(NamedTuple):
+    """What :meth:`Method.run` returns.
+
+    Attributes:
+        method: the method's name.
+        result: its own result (:class:`DiscreteFit`, ``BIRLResult``, ``MAPResult``, ``NUTSResult``).
+        fields: the result document's fields (see the module docstring), ``run_time_s`` included.
+        settings: the options as the result records them (the method's ``record``).
+    """
+
+    method: str
+    result: Any
+    fields: dict[str, Any]
+    settings: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Method:
+    """One inference method: its options dataclass, what it runs and how it is described.
+
+    ``setup(mdp, opts, seed, note=None)`` settles what comes before the long part (the discrete
+    set; ``note(line)`` hears what the user should know: the prior, a capped --sample-thetas), and
+    ``fit(mdp, trajs, opts, seed, progress=None, setup=None)`` runs the method (``mdp`` and
+    ``trajs`` may be equal-length lists of tasks for map and nuts); ``progress(done, total)``
+    counts ``unit`` (``label`` names the bar, formatted with the options' fields).
+    ``measure_lanes``: it solves many hypotheses at once, so the solver's lane width is worth
+    measuring first.
+    """
+
+    name: str
+    options: type
+    setup: Callable[..., Any]
+    fit: Callable[..., Any]
+    describe: Callable[[Any, Any, Sequence[str]], dict[str, Any]]
+    record: Callable[[Any, Any], dict[str, Any]]
+    unit: str
+    label: str
+    measure_lanes: bool = False
+
+    def options_from(self, values: Mapping[str, Any]):
+        """This method's options from ``values``, keeping only the names its options dataclass has."""
+        names = {f.name for f in fields(self.options)}
+        return self.options(**{k: v for k, v in values.items() if k in names})
+
+    def progress_label(self, opts) -> str:
+        return self.label.format(**asdict(opts))
+
+    def run(self, mdp, trajs, opts, seed: Seed, *, progress: Progress = None, note: Note = None,
+            setup: Any = None) -> MethodRun:
+        """Set up (unless ``setup`` is given), run the method and describe its result."""
+        if not isinstance(opts, self.options):
+            raise InputError(f"method {self.name} takes {self.options.__name__}, got {type(opts).__name__}")
+        t0 = time.perf_counter()
+        if setup is None:
+            setup = self.setup(mdp, opts, seed, note)
+        result = self.fit(mdp, trajs, opts, seed, progress, setup)
+        first = mdp if hasattr(mdp, "feature_names") else mdp[0]
+        out = self.describe(result, opts, first.feature_names)
+        out["run_time_s"] = time.perf_counter() - t0
+        return MethodRun(self.name, result, out, self.record(result, opts))
+
+
+METHODS: dict[str, Method] = {
+    "discrete": Method("discrete", DiscreteOptions, _setup_discrete, _fit_discrete, _describe_discrete,
+                       _discrete_settings, "hypotheses", "solving soft value iteration", measure_lanes=True),
+    "birl": Method("birl", BIRLOptions, _announce, _fit_birl, _describe_birl, _continuous_settings,
+                   "iterations", "Algorithm 1"),
+    "map": Method("map", MAPOptions, _announce, _fit_map, _describe_map, _continuous_settings,
+                  "starts", "MAP (L-BFGS-B)"),
+    "nuts": Method("nuts", NUTSOptions, _announce, _fit_nuts, _describe_nuts, _continuous_settings,
+                   "iterations", "NUTS ({chains} chains, warm-up included)"),
+}
+
+
+def get_method(name: str) -> Method:
+    """The method called ``name``; :class:`InputError` naming the choices."""
+    if name not in METHODS:
+        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {name!r}")
+    return METHODS[name]
+
+
+def option_owners() -> dict[str, tuple[str, ...]]:
+    """Each option that only some methods read -> those methods (in :data:`METHODS` order)."""
+    owners: dict[str, list[str]] = {}
+    for m in METHODS.values():
+        for f in fields(m.options):
+            owners.setdefault(f.name, []).append(m.name)
+    return {k: tuple(v) for k, v in owners.items() if len(v) < len(METHODS)}
+
+
+def document(run: MethodRun, *, feature_names: Sequence[str], settings: dict[str, Any],
+             data: dict[str, Any], samples_path=None) -> dict[str, Any]:
+    """The result document of ``run``; ``settings`` (command, inputs, seed...) precede the method's.
+
+    Draws beyond :data:`~expertise_irl.results.INLINE_DRAWS` go to ``samples_path``.
+    """
+    from ..results import continuous_result, discrete_result
+
+    settings = {**settings, **run.settings}
+    if isinstance(run.result, DiscreteFit):
+        fit = run.result
+        doc = discrete_result(fit.posterior, feature_names=feature_names, settings=settings, data=data,
+                              trace=fit.trace, trace_index=fit.trace_index)
+        return {**doc, **run.fields}
+    return continuous_result(run.fields, method=run.method, feature_names=feature_names, settings=settings,
+                             data=data, samples_path=samples_path)
