@@ -80,7 +80,7 @@ def study(
     solved once; a second run on the same DIR resumes (docs/user-studies.md).
     """
     from ..userstudy.evidence import parse_models
-    from ..userstudy.run import StudyFailed, StudyOptions, run_study
+    from ..userstudy.run import StudyOptions
 
     path = resolve_manifest(manifest)
     if method not in ("discrete", "map", "nuts"):
@@ -99,6 +99,12 @@ def study(
         model=model,
         models=compared,
     )
+    _print_outcome(_run(path, out, opts, workers, scheduler), out)
+
+
+def _run(path: Path, out: Path, opts, workers: int | None, scheduler: str | None):
+    """Run the study, reporting progress; a failed task is printed and exits with 1."""
+    from ..userstudy.run import StudyFailed, run_study
 
     def on_task(phase, total, todo, res) -> None:
         if res is None:
@@ -112,6 +118,11 @@ def study(
             err.print(f"error: {exc.phase} task {key} failed: {message}", markup=False, highlight=False)
         _say(f"{len(exc.failures)} {exc.phase} task(s) failed; run the same command again to retry them")
         raise typer.Exit(1) from None
+    return outcome
+
+
+def _print_outcome(outcome, out: Path) -> None:
+    """One line per participant (and per model comparison), then what was written."""
     names = outcome.feature_names
     for r in outcome.participants:
         theta = ", ".join(f"{r[f'theta_{f}']:.2f}" for f in names)
