@@ -112,6 +112,22 @@ def test_help_does_not_import_heavy_modules():
     assert "HEAVY []" in proc.stdout, proc.stdout
 
 
+def test_list_does_not_load_jax():
+    """Listing studies reads their specs; nothing is solved, so JAX stays unloaded (seconds saved)."""
+    code = (
+        "import sys\n"
+        "from expertise_irl.cli import app\n"
+        "try:\n"
+        "    app(['experiment', 'list'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print('JAX', 'jax' in sys.modules)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "conditions" in proc.stdout and "fullset" in proc.stdout, proc.stdout + proc.stderr
+    assert "JAX False" in proc.stdout, proc.stdout
+
+
 def test_config_file_replaces_fields_and_is_recorded(tmp_path):
     import json
     import tomllib

@@ -10,15 +10,27 @@
 - :mod:`.differentiable`: the log-likelihood solved inside JAX with an implicit gradient
   (MAP, NUTS, Algorithm 1).
 
-Float64 is switched on here, once, for the whole process: soft value iteration at small β
-needs it, and every module that computes with JAX imports this package first.
+Float64 is switched on once, in :mod:`.kernels` (``jax_enable_x64``), for the whole process: soft
+value iteration at small β needs it, and every module that computes with JAX (:mod:`.soft_vi`,
+:mod:`.differentiable`, the tuner, and through them the continuous methods) imports the kernels
+first. This package's own names are imported on first use, so :mod:`.jax_cache` and
+:mod:`.tuning`'s cache reads do not load JAX.
 """
 
-import jax
+from __future__ import annotations
 
-jax.config.update("jax_enable_x64", True)
+import importlib
+from typing import Any
 
-from .soft_vi import DEFAULT_TOL, SoftSolution, solve  # noqa: E402  (after float64 is on)
-from .table_likelihood import log_likelihood  # noqa: E402
+#: public name -> submodule that defines it
+_EXPORTS = {"DEFAULT_TOL": ".soft_vi", "SoftSolution": ".soft_vi", "solve": ".soft_vi",
+            "log_likelihood": ".table_likelihood"}
 
 __all__ = ["DEFAULT_TOL", "SoftSolution", "log_likelihood", "solve"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(module, __name__), name)

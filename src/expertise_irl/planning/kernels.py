@@ -35,6 +35,9 @@ import numpy as np
 from ..mdp import TabularMDP
 from ..models import backup
 
+# The one place float64 is switched on (see the package docstring).
+jax.config.update("jax_enable_x64", True)
+
 #: Hypotheses along the minor (vector) axis of one group where none is chosen for the machine
 #: (:mod:`expertise_irl.planning.tuning` picks it at first use). XLA's CPU code ran about twice as fast
 #: per backup with 8 float64 lanes (one AVX-512 vector) as with 16 or more on an AVX-512 machine.

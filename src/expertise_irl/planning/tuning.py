@@ -224,26 +224,26 @@ def _measure(dtype: str) -> LaneChoice:
 
     from ..hypotheses import THETA_PRESETS, theta_grid
     from ..worlds.maps import resolve_world
-    from . import kernels as solver
+    from . import kernels
 
     candidates = CANDIDATES.get(jax.default_backend(), ())
     if not candidates:
-        return LaneChoice(solver.LANES, "default", {})
+        return LaneChoice(kernels.LANES, "default", {})
     mdp = resolve_world("zones30").to_mdp()
-    prep = solver.prepared(mdp, dtype)
+    prep = kernels.prepared(mdp, dtype)
     jdtype = jnp.float64 if dtype == "float64" else jnp.float32
     thetas = theta_grid(THETA_PRESETS["paper-sim"], mdp.n_features)
     consts = (jnp.asarray(mdp.gamma, jdtype), jnp.asarray(1e-300, jdtype), jnp.asarray(_SWEEPS))
     rates: dict[int, float] = {}
     for lanes in candidates:
-        slots = solver.default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
+        slots = kernels.default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
         H = _POOLS * slots
         weights = jnp.asarray(thetas[np.arange(H) % len(thetas)])
         v0 = jnp.zeros((H, prep.n_rows))
         best = np.inf
         for i in range(3):
             t = time.perf_counter()
-            _, it, _ = solver.solve_pool(prep, weights, v0, *consts, groups=slots // lanes, lanes=lanes)
+            _, it, _ = kernels.solve_pool(prep, weights, v0, *consts, groups=slots // lanes, lanes=lanes)
             sweeps = int(np.asarray(it).sum())  # blocks until done
             if i:
                 best = min(best, time.perf_counter() - t)
