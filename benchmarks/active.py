@@ -34,9 +34,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
-from expertise_irl.demos.simulation import simulate
 from online import cpu_flags
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.hypotheses import (
     BETA_PRESETS,
     EXPERTISE_GROUPS,

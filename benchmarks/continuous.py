@@ -28,8 +28,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, sample_thetas, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.inference.birl import extended_birl

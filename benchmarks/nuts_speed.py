@@ -36,8 +36,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.inference.diagnostics import chain_statistics
 from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.inference.priors import numpyro_priors

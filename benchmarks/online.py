@@ -24,9 +24,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import cpu_flags, machine_info
-from expertise_irl.demos.simulation import simulate
 from soft_vi import build_workload
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief

@@ -38,8 +38,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import cpu_flags, machine_info
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.inference import sbc
 from expertise_irl.inference.nuts import nuts_posterior
 from expertise_irl.inference.priors import DEFAULT_PRIOR, get_prior, numpyro_priors

@@ -7,9 +7,9 @@ import warnings
 
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 from reference_solver import soft_value_iteration
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import (

@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke, ok
-from expertise_irl.demos.csv_io import read_demos_csv
 
 import expertise_irl
 from expertise_irl import cli
+from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, theta_grid
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.worlds.zones import load_bundled

@@ -1,4 +1,4 @@
-"""Tests for inference/conditions.py: the hypothesis sets of Sec. VI-A and out-of-set truths."""
+"""Tests for inference/hypothesis_sets.py: the hypothesis sets of Sec. VI-A and out-of-set truths."""
 
 from __future__ import annotations
 

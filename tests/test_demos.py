@@ -1,12 +1,12 @@
-"""Tests for demos.py: the simulated person, validation and the CSV formats."""
+"""Tests for demos/: the simulated person, validation and the CSV formats."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
 from expertise_irl.demos.simulation import DEFAULT_MAX_STEPS, simulate
-
 from expertise_irl.demos.trajectories import Trajectories, validate
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP

@@ -144,7 +144,6 @@ def test_discrete_mass_on_the_border_of_the_theta_set():
 def test_a_real_experts_single_demonstration_warns_with_the_default_grid():
     """A person far more expert than the grid's smallest β: the warning says which --betas to add."""
     from expertise_irl.demos.simulation import simulate
-
     from expertise_irl.worlds.zones import load_bundled
 
     mdp = load_bundled("crossroads").to_mdp()

@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 from reference_solver import reference
 from scipy.special import logsumexp
 from test_cli import assert_input_error, invoke, ok
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.inference.evidence import compare_models, split_episodes

@@ -8,8 +8,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.inference.gradient import BETA_PRIOR_MEAN, BETA_PRIOR_SD, map_estimate

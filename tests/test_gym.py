@@ -7,9 +7,9 @@ import warnings
 import gymnasium
 import numpy as np
 import pytest
-from expertise_irl.demos.csv_io import read_demos_csv
 from gymnasium.utils.env_checker import check_env
 
+from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.demos.trajectories import validate
 from expertise_irl.errors import InputError
 from expertise_irl.gym import ENV_ID, RecordTrajectories, ZoneEnv

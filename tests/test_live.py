@@ -8,10 +8,10 @@ import json
 from collections import deque
 
 import pytest
-from expertise_irl.demos.csv_io import read_demos_csv
 from starlette.testclient import TestClient
 from test_cli import assert_input_error, invoke, ok
 
+from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.live.server import LOOPBACK_NAMES, MAX_MESSAGE, create_app

@@ -22,9 +22,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from expertise_irl.demos.csv_io import read_demos_csv
 from test_live import path_to_goal
 
+from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.mdp import ACTION_NAMES
 from expertise_irl.worlds.zones import parse_map
 

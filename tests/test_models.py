@@ -6,9 +6,9 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 from reference_solver import random_mdp, reference
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
 from expertise_irl.inference.task_likelihood import pair_counts
 from expertise_irl.mdp import TabularMDP

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import HypothesisSet, resolve_betas, resolve_thetas

@@ -7,8 +7,8 @@ import json
 
 import numpy as np
 import pytest
-from expertise_irl.demos.simulation import simulate
 
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import validate
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid

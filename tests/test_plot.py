@@ -18,7 +18,7 @@ from expertise_irl.cli import app
 from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
-from expertise_irl.hypotheses import GROUP_NAMES, HypothesisSet, expertise_group
+from expertise_irl.hypotheses import HypothesisSet, expertise_group
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.plots import results as rp
 from expertise_irl.results import check_result
@@ -137,7 +137,7 @@ def test_trace_groups_and_band_match_streaming_updates():
         if i:
             b = b.update_action(int(trajs.state[i - 1]), int(trajs.action[i - 1]))
         g = b.group_probabilities()
-        np.testing.assert_allclose(tr.group_probabilities[i], [g[k] for k in GROUP_NAMES], atol=1e-12)
+        np.testing.assert_allclose(tr.group_probabilities[i], [g[k] for k in ("high", "medium", "low")], atol=1e-12)
         assert tr.groups_at(i) == pytest.approx(g, abs=1e-12)
         grid, pb = b.marginal_beta()
         cdf = np.cumsum(pb)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke
-from expertise_irl.demos.csv_io import read_demos_csv
 
+from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.demos.recordings import discretise, read_recording, shortest_free_path
 from expertise_irl.errors import InputError
 from expertise_irl.worlds.maps import resolve_world

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke
-from expertise_irl.demos.csv_io import write_demos_csv
 from scipy.stats import spearmanr
 
+from expertise_irl.demos.csv_io import write_demos_csv
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.userstudy.paths import greedy_path, path_counts
 from expertise_irl.worlds.warehouse import parse_floor_plan
@@ -278,7 +278,6 @@ def test_bundled_study_recovers_the_ordering_of_expertise(tmp_path):
 
 def test_map_and_nuts_studies_fit_each_participant_on_all_their_tasks(study_dir):
     from expertise_irl.demos.csv_io import read_demos_csv
-
     from expertise_irl.demos.recordings import discretise_recording
     from expertise_irl.inference.gradient import map_estimate
     from expertise_irl.userstudy.study import participant_seed
@@ -338,7 +337,6 @@ def add_three_episode_participant(study_dir) -> None:
 def manifest_trajectories(study_dir):
     """``(participant, map name, trajectories)`` of every manifest row, read without the study."""
     from expertise_irl.demos.csv_io import read_demos_csv
-
     from expertise_irl.demos.recordings import discretise_recording
 
     out = []

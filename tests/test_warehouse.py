@@ -6,14 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke
-from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
-from expertise_irl.demos.simulation import simulate
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
+from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
+from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.plots import floorplan as warehouse_render
+from expertise_irl.plots import floorplan
 from expertise_irl.plots.maps import ROAD_ARROWS_GID
 from expertise_irl.worlds.maps import resolve_world
 from expertise_irl.worlds.warehouse import (
@@ -298,14 +298,14 @@ def test_floor_plan_figure_has_green_road_arrows_red_restricted_dark_obstacles_a
     plan = parse_floor_plan("S>>\n#x^\nG.G\n")
     fig = Figure()
     ax = fig.add_subplot()
-    warehouse_render.draw_floor_plan(ax, plan)
+    floorplan.draw_floor_plan(ax, plan)
     (q,) = [c for c in ax.collections if c.get_gid() == ROAD_ARROWS_GID]
-    assert np.allclose(q.get_facecolor()[0][:3], to_rgb(warehouse_render.ROAD_COLOR))
+    assert np.allclose(q.get_facecolor()[0][:3], to_rgb(floorplan.ROAD_COLOR))
     assert sorted(zip(q.X.tolist(), q.Y.tolist(), q.U.tolist(), q.V.tolist(), strict=True)) == [
         (1, 0, 1, 0), (2, 0, 1, 0), (2, 1, 0, -1)]
     img = ax.images[0].get_array()
-    assert np.allclose(img[1, 1], to_rgb(warehouse_render.CELL_COLORS["x"]))
-    assert np.allclose(img[1, 0], to_rgb(warehouse_render.CELL_COLORS["#"]))
+    assert np.allclose(img[1, 1], to_rgb(floorplan.CELL_COLORS["x"]))
+    assert np.allclose(img[1, 0], to_rgb(floorplan.CELL_COLORS["#"]))
     goals = sorted(p.center for p in ax.patches if p.get_gid() == "goal")
     assert goals == [(0, 2), (2, 2)]
 

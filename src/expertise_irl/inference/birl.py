@@ -252,7 +252,8 @@ def extended_birl(
     """Sample P(θ, β | Ξ) with Algorithm 1 (see the module docstring for every choice made).
 
     Args:
-        mdp: the task; trajs: the demonstrations Ξ (checked with :func:`demos.validate`).
+        mdp: the task; trajs: the demonstrations Ξ (checked with
+            :func:`~expertise_irl.demos.trajectories.validate`).
         n_iter: iterations K of Algorithm 1.
         delta: θ lattice step δ; beta_step: β lattice step.
         theta_max: box side (box variant; a multiple of ``delta``).

@@ -20,7 +20,7 @@ from matplotlib.patches import Circle, Patch
 from ..errors import InputError
 from ..worlds.grid import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
 from ..worlds.warehouse import RESTRICTED, WarehouseMap
-from . import maps as render
+from . import maps
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -53,12 +53,12 @@ def draw_floor_plan(ax: Axes, plan: WarehouseMap, *, show_grid: bool = True,
                     legend: bool = True) -> Axes:
     """Draw a floor plan: cells, green road arrows (gid ``"road-arrows"``), goals, starts."""
     g = plan.grid
-    render.draw_cells(ax, g, CELL_COLORS, grid_lw=0.3 if show_grid and max(g.shape) <= 80 else None)
-    render.draw_road_arrows(ax, g, color=ROAD_COLOR, length=0.6, width=0.1)
-    render.draw_starts(ax, g, 0.6)
+    maps.draw_cells(ax, g, CELL_COLORS, grid_lw=0.3 if show_grid and max(g.shape) <= 80 else None)
+    maps.draw_road_arrows(ax, g, color=ROAD_COLOR, length=0.6, width=0.1)
+    maps.draw_starts(ax, g, 0.6)
     for row, col in np.argwhere(g == GOAL):
         ax.add_patch(Circle((col, row), 0.4, fc=GOAL_FILL, ec="#7a5200", lw=0.8, zorder=2, gid="goal"))
-    render.frame_cells(ax, g)
+    maps.frame_cells(ax, g)
     if legend:
         handles = floor_plan_legend_handles(plan)
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(handles),
@@ -102,21 +102,21 @@ def render_floor_plan_png(plan: WarehouseMap, path: str | Path, *,
                           trajectories_xy: Sequence[np.ndarray] | None = None,
                           title: str | None = None) -> Path:
     """Save a PNG of the floor plan, optionally with paths of cells (one ``[T, 2]`` per episode)."""
-    mw, mh = render._map_size(plan, 10.0, 8.0)
-    fig = render._new_figure((max(mw + 0.3, 5.2), mh + 1.1))
+    mw, mh = maps.map_size(plan, 10.0, 8.0)
+    fig = maps.new_figure((max(mw + 0.3, 5.2), mh + 1.1))
     ax = fig.add_subplot()
     draw_floor_plan(ax, plan)
     for i, p in enumerate(trajectories_xy or ()):
-        draw_cell_path(ax, plan, p, color=render.PATH_COLORS[i % len(render.PATH_COLORS)],
+        draw_cell_path(ax, plan, p, color=maps.PATH_COLORS[i % len(maps.PATH_COLORS)],
                        gid=f"path-{i}")
     ax.set_title(title if title is not None else plan.name, fontsize=10)
-    return render._save(fig, path)
+    return maps.save_figure(fig, path)
 
 
 def render_discretised_png(path: str | Path, plan: WarehouseMap, result: Discretised, *,
                            title: str | None = None) -> Path:
     """Save :func:`discretised_figure` as a PNG (dpi 120)."""
-    return render._save(discretised_figure(plan, result, title=title), path)
+    return maps.save_figure(discretised_figure(plan, result, title=title), path)
 
 
 def discretised_figure(plan: WarehouseMap, result: Discretised, *, title: str | None = None):
@@ -129,8 +129,8 @@ def discretised_figure(plan: WarehouseMap, result: Discretised, *, title: str | 
     eps = result.episodes
     cols = min(len(eps), 3)
     rows = -(-len(eps) // cols)
-    mw, mh = render._map_size(plan, 6.0, 5.0)
-    fig = render._new_figure((cols * (mw + 0.3), rows * (mh + 0.7) + 0.6))
+    mw, mh = maps.map_size(plan, 6.0, 5.0)
+    fig = maps.new_figure((cols * (mw + 0.3), rows * (mh + 0.7) + 0.6))
     for k, ep in enumerate(eps):
         ax = fig.add_subplot(rows, cols, k + 1)
         draw_floor_plan(ax, plan, legend=False)

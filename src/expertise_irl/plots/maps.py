@@ -310,7 +310,7 @@ def draw_beta_marginal(ax: Axes, betas, probs, *, beta_true: float | None = None
     ax.set_ylim(0, max(1.0, float(p.max()) + 0.1) * (1.2 if beta_true is not None else 1.0))
     ax.set_yticks([t for t in (0, 0.2, 0.4, 0.6, 0.8, 1.0) if t <= ax.get_ylim()[1]])
     ax.set_title(title, fontsize=9.5)
-    _tidy(ax)
+    tidy(ax)
     return ax
 
 
@@ -410,7 +410,7 @@ def _draw_theta_means(ax: Axes, th: np.ndarray, p: np.ndarray, names: list[str],
     ax.set_ylim(0, max(1.0, float(np.max(mean)), float(np.max(true)) if true is not None else 0) * 1.05)
     ax.set_title(r"reward weights $\theta$", fontsize=9.5)
     ax.legend(fontsize=7.5, frameon=False, loc="upper right")
-    _tidy(ax)
+    tidy(ax)
 
 
 def _draw_top_thetas(ax_top: Axes, th: np.ndarray, p: np.ndarray, names: list[str], true: np.ndarray | None,
@@ -436,29 +436,29 @@ def _draw_top_thetas(ax_top: Axes, th: np.ndarray, p: np.ndarray, names: list[st
     ax_top.set_xlim(0, min(1.0, float(pu[order].max()) * 1.25 + 0.02))
     ax_top.set_xlabel("probability", fontsize=8.5)
     ax_top.set_title(rf"top {len(order)} $\theta$  ({', '.join(names)})", fontsize=8.5)
-    _tidy(ax_top)
+    tidy(ax_top)
 
 
-def _tidy(ax: Axes) -> None:
+def tidy(ax: Axes) -> None:
     ax.spines[["top", "right"]].set_visible(False)
     ax.tick_params(labelsize=7.5, length=2.5)
 
 
 # ------------------------------------------------------------------------ figures
-def _new_figure(figsize: tuple[float, float]) -> Figure:
+def new_figure(figsize: tuple[float, float]) -> Figure:
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
 
 
-def _map_size(zone_map: ZoneMap, max_w: float, max_h: float) -> tuple[float, float]:
+def map_size(zone_map: ZoneMap, max_w: float, max_h: float) -> tuple[float, float]:
     """Inches for the map panel: ~0.42 in per cell (more for tiny maps), within ``max_w`` × ``max_h``."""
     w, h = zone_map.width, zone_map.height
     cell = min(max(0.42, 3.5 / max(w, h)), max_w / w, max_h / h)
     return cell * w, cell * h
 
 
-def _save(fig: Figure, path: str | Path) -> Path:
+def save_figure(fig: Figure, path: str | Path) -> Path:
     path = Path(path)
     fig.savefig(path, dpi=DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()
@@ -489,14 +489,14 @@ def render_map_png(
     Path
         ``path``.
     """
-    mw, mh = _map_size(zone_map, 9.0, 8.0)
-    fig = _new_figure((max(mw + 0.3, 5.2), mh + 1.1))
+    mw, mh = map_size(zone_map, 9.0, 8.0)
+    fig = new_figure((max(mw + 0.3, 5.2), mh + 1.1))
     ax = fig.add_subplot()
     draw_map(ax, zone_map)
     if trajectories_xy is not None:
         draw_trajectories(ax, zone_map, trajectories_xy)
     ax.set_title(title if title is not None else zone_map.name, fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def render_summary_png(
@@ -538,8 +538,8 @@ def render_summary_png(
     Path
         ``path``.
     """
-    mw, mh = _map_size(zone_map, 7.0, 5.8)
-    fig = _new_figure((mw + 5.4, max(mh + 1.3, 6.8)))
+    mw, mh = map_size(zone_map, 7.0, 5.8)
+    fig = new_figure((mw + 5.4, max(mh + 1.3, 6.8)))
     gs = fig.add_gridspec(3, 2, width_ratios=[mw, 5.0], height_ratios=[1.0, 1.0, 1.1])
     ax_map = fig.add_subplot(gs[:, 0])
     draw_map(ax_map, zone_map)
@@ -552,7 +552,7 @@ def render_summary_png(
                        top=top, ax_top=fig.add_subplot(gs[2, 1]) if top > 0 else None)
     if title:
         fig.suptitle(title, fontsize=11)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # ------------------------------------------------------------------ demo figure
@@ -749,7 +749,7 @@ def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | 
 def render_demo_png(path: str | Path, run, *, title: str | None = None,
                     n_episodes: int = DEMO_EPISODES, max_moves: int | None = DEMO_MOVES) -> Path:
     """Save the ``expertise-irl demo`` figure (:func:`demo_figure`) as a PNG (dpi 120)."""
-    return _save(demo_figure(run, title=title, n_episodes=n_episodes, max_moves=max_moves), path)
+    return save_figure(demo_figure(run, title=title, n_episodes=n_episodes, max_moves=max_moves), path)
 
 
 def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODES,
@@ -771,7 +771,7 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
     n = len(paths)
     n_goal = sum(o == "goal" for o in outcomes)
 
-    mw, mh = _map_size(zm, 6.6, 6.6)
+    mw, mh = map_size(zm, 6.6, 6.6)
     shown_ids = ", ".join(str(int(e)) for e in ids[:shown])
     notes = [f"Episode{'s' if shown != 1 else ''} {shown_ids} drawn "
              f"({shown} of {n}); every episode is in the visit dots."]
@@ -786,7 +786,7 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
     heights = [mh, 0.78, 0.2 + 0.15 * shown, 0.1 + 0.135 * (text.count("\n") + 1)]
     fig_h = max(sum(heights) + 0.7, 7.6)
     heights.append(max(fig_h - 0.7 - sum(heights), 0.01))  # spare height goes below the notes
-    fig = _new_figure((mw + 5.8, fig_h))
+    fig = new_figure((mw + 5.8, fig_h))
     sf_left, sf_right = fig.subfigures(1, 2, width_ratios=[mw + 0.4, 5.4], wspace=0.02)
     left = sf_left.add_gridspec(5, 1, height_ratios=heights)
     ax_map = sf_left.add_subplot(left[0])

@@ -12,7 +12,7 @@ One figure per result (any method of ``infer``, or ``demo``'s result):
   actions seen, with a dashed line where each new episode starts;
 - the result's ``diagnostics.warnings`` (non-convergence and the like), in red below.
 
-Like :mod:`.render`, figures are built on a :class:`~matplotlib.figure.Figure` directly
+Like :mod:`.maps`, figures are built on a :class:`~matplotlib.figure.Figure` directly
 (no pyplot state). Artists carry gids so that tests can find them.
 """
 
@@ -27,7 +27,7 @@ import numpy as np
 
 from ..hypotheses import GROUP_NAMES as GROUPS
 from ..results import SAMPLED, is_number, load_samples
-from . import maps as render
+from . import maps
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -72,7 +72,7 @@ def draw_discrete_component(ax: Axes, values, probs, name: str, *, mean: float |
     ax.set_title(rf"$\theta$ {name}: E = {mean:.3g}" if mean is not None else rf"$\theta$ {name}",
                  fontsize=8.5)
     ax.set_ylabel("marginal prob.", fontsize=7.5)
-    render._tidy(ax)
+    maps.tidy(ax)
     return ax
 
 
@@ -106,7 +106,7 @@ def draw_sampled(ax: Axes, draws, label: str, *, interval=None, mean: float | No
     ax.set_title(f"{label}: 90% [{lo:.3g}, {hi:.3g}]", fontsize=8.5)
     ax.set_ylabel("density", fontsize=7.5)
     ax.set_yticks([])
-    render._tidy(ax)
+    maps.tidy(ax)
     return ax
 
 
@@ -120,7 +120,7 @@ def draw_point(ax: Axes, value: float, label: str, *, lo: float, hi: float, log:
     ax.set_ylim(0, 1)
     ax.set_yticks([])
     ax.set_title(f"{label} = {value:{'.3g' if log else '.3f'}}  (point estimate)", fontsize=8.5)
-    render._tidy(ax)
+    maps.tidy(ax)
     ax.spines["left"].set_visible(False)
     return ax
 
@@ -203,7 +203,7 @@ def draw_trace(axes: Sequence[Axes], trace: list[dict[str, Any]], *, beta_true: 
         for b in t["boundaries"]:
             ax.axvline(b, color=BOUNDARY_COLOR, lw=0.7, ls="--", gid="episode-boundary", zorder=0)
         ax.set_xlim(0, max(len(x) - 1, 1))
-        render._tidy(ax)
+        maps.tidy(ax)
     return axes
 
 
@@ -216,10 +216,10 @@ def draw_mdp_cells(ax: Axes, mdp: TabularMDP) -> Axes:
     w, h = int(xy[:, 0].max()) + 1, int(xy[:, 1].max()) + 1
     ax.add_patch(Rectangle((-0.5, -0.5), w, h, fc="#3a3a3a", ec="none", zorder=0))
     for s, (x, y) in enumerate(xy.tolist()):
-        ax.add_patch(Rectangle((x - 0.5, y - 0.5), 1, 1, fc="#fafafa", ec=render.GRID_COLOR,
+        ax.add_patch(Rectangle((x - 0.5, y - 0.5), 1, 1, fc="#fafafa", ec=maps.GRID_COLOR,
                                lw=0.4, zorder=1))
         if mdp.terminal[s]:
-            ax.add_patch(Circle((x, y), 0.36, fc=render.GOAL_COLOR, ec="white", lw=0.8, zorder=6,
+            ax.add_patch(Circle((x, y), 0.36, fc=maps.GOAL_COLOR, ec="white", lw=0.8, zorder=6,
                                 gid="goal"))
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
@@ -241,7 +241,7 @@ def _grid_of(mdp: TabularMDP):
 
 
 def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs: Trajectories | None,
-                      *, n_episodes: int = render.DEMO_EPISODES, max_steps: int | None = None) -> list:
+                      *, n_episodes: int = maps.DEMO_EPISODES, max_steps: int | None = None) -> list:
     """The map, visit dots of every episode and the first few episodes drawn distinctly.
 
     Returns the legend handles (zones, markers, episodes).
@@ -255,23 +255,23 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
         grid = zone_map
         handles = floor_plan_legend_handles(zone_map)
     elif zone_map is not None:
-        render.draw_map(ax, zone_map, legend=False)
+        maps.draw_map(ax, zone_map, legend=False)
         grid = zone_map
-        handles = render.map_legend_handles(zone_map)
+        handles = maps.map_legend_handles(zone_map)
     else:
         draw_mdp_cells(ax, mdp)
         grid = _grid_of(mdp)
         handles = []
     if trajs is None:
         return handles
-    paths = render.paths_to_xy(trajs, mdp)
-    outcomes = render.episode_outcomes(trajs, mdp, max_steps)
-    render.draw_visits(ax, grid, paths)
+    paths = maps.paths_to_xy(trajs, mdp)
+    outcomes = maps.episode_outcomes(trajs, mdp, max_steps)
+    maps.draw_visits(ax, grid, paths)
     shown = min(n_episodes, len(paths))
     ids = trajs.episode_ids
-    eps = render.draw_episodes(ax, grid, paths[:shown], outcomes[:shown],
+    eps = maps.draw_episodes(ax, grid, paths[:shown], outcomes[:shown],
                                labels=[f"episode {int(e)}" for e in ids[:shown]])
-    return handles + render.episode_marker_handles(outcomes[:shown]) + eps
+    return handles + maps.episode_marker_handles(outcomes[:shown]) + eps
 
 
 # ------------------------------------------------------------------------ figure
@@ -287,7 +287,7 @@ def render_result_png(
     """Save :func:`result_figure` to ``path`` (the format follows the suffix; PNG at dpi 120)."""
     fig = result_figure(doc, source=source, mdp=mdp, zone_map=zone_map, trajs=trajs)
     out = Path(path)
-    fig.savefig(out, dpi=render.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    fig.savefig(out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()
     return out
 
@@ -329,13 +329,13 @@ def result_figure(
     post_h = 2.0 * nrows
     map_w = 0.0
     if draw_map:
-        mw, mh = render._map_size(zone_map, 5.5, 5.5) if zone_map is not None else (4.5, 4.5)
+        mw, mh = maps.map_size(zone_map, 5.5, 5.5) if zone_map is not None else (4.5, 4.5)
         map_w = mw + 0.3
         post_h = max(post_h, mh + (1.4 if trajs is not None else 0.6))
     trace_h = 5.2 if trace else 0.0
     warnings = result_warnings(doc)
     warn_h = 0.25 + 0.16 * min(len(warnings), 4) if warnings else 0.0
-    fig = render._new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + warn_h + 0.6))
+    fig = maps.new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + warn_h + 0.6))
     heights = [h for h in (post_h, trace_h, warn_h) if h > 0]
     rows = list(fig.subfigures(len(heights), 1, height_ratios=heights, hspace=0.02)) if len(
         heights) > 1 else [fig]
@@ -406,7 +406,7 @@ def _draw_discrete(doc: dict[str, Any], ax_beta: Axes, ax_th, beta_true, theta_t
     names = doc["feature_names"]
     m = doc["marginals"]
     betas, pb = m["beta"]["values"], m["beta"]["probabilities"]
-    render.draw_beta_marginal(ax_beta, betas, pb, beta_true=beta_true)
+    maps.draw_beta_marginal(ax_beta, betas, pb, beta_true=beta_true)
     ax_beta.set_title(rf"$\beta$: marginal posterior, E = {doc['beta_hat']:.3g}", fontsize=8.5)
     ax_beta.set_ylabel("marginal prob.", fontsize=7.5)
     ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)

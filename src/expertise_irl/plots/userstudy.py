@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..worlds.warehouse import WarehouseMap
-from . import maps as render
+from . import maps
 from .floorplan import PATH_COLOR, draw_cell_path, draw_floor_plan
 from .results import draw_discrete_component, draw_point, draw_sampled, theta_component_marginal
 
@@ -31,7 +31,7 @@ def _beta_bars(ax, values, probs, mean: float) -> None:
     ax.set_ylim(0, max(float(np.max(probs)) * 1.15, 0.05))
     ax.set_title(rf"$\beta$: E = {mean:.3g}", fontsize=8.5)
     ax.set_ylabel("marginal prob.", fontsize=7.5)
-    render._tidy(ax)
+    maps.tidy(ax)
 
 
 def participant_figure(participant: str, panels: Sequence[dict[str, Any]], doc: dict[str, Any]):
@@ -44,9 +44,9 @@ def participant_figure(participant: str, panels: Sequence[dict[str, Any]], doc: 
     names = doc["feature_names"]
     K = len(names)
     plan0: WarehouseMap = panels[0]["plan"]
-    mw, mh = render._map_size(plan0, 6.0, 4.0)
+    mw, mh = maps.map_size(plan0, 6.0, 4.0)
     width = max(2 * mw + 0.6, 2.1 * (K + 1))
-    fig = render._new_figure((width, len(panels) * (mh + 0.7) + 2.4))
+    fig = maps.new_figure((width, len(panels) * (mh + 0.7) + 2.4))
     grid = fig.add_gridspec(len(panels) + 1, 2 * (K + 1), height_ratios=[mh + 0.5] * len(panels) + [1.6])
     for r, panel in enumerate(panels):
         plan = panel["plan"]
@@ -92,4 +92,4 @@ def participant_figure(participant: str, panels: Sequence[dict[str, Any]], doc: 
 
 
 def render_participant_png(path: str | Path, participant: str, panels, doc) -> Path:
-    return render._save(participant_figure(participant, panels, doc), path)
+    return maps.save_figure(participant_figure(participant, panels, doc), path)

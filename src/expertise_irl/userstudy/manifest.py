@@ -88,7 +88,7 @@ def read_manifest(
     snap: bool = False,
 ) -> Manifest:
     """Read a manifest and load every row's floor plan and demonstrations (recordings are
-    discretised with ``rate``, ``max_dt``, ``fill_gaps``, ``snap``; see :mod:`..recordings`)."""
+    discretised with ``rate``, ``max_dt``, ``fill_gaps``, ``snap``; see :mod:`..demos.recordings`)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such manifest file")
