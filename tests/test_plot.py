@@ -137,7 +137,8 @@ def test_trace_groups_and_band_match_streaming_updates():
         if i:
             b = b.update_action(int(trajs.state[i - 1]), int(trajs.action[i - 1]))
         g = b.group_probabilities()
-        np.testing.assert_allclose(tr.group_probabilities[i], [g[k] for k in ("high", "medium", "low")], atol=1e-12)
+        np.testing.assert_allclose(tr.group_probabilities[i], [g[k] for k in ("high", "medium", "low")],
+                                   atol=1e-12)
         assert tr.groups_at(i) == pytest.approx(g, abs=1e-12)
         grid, pb = b.marginal_beta()
         cdf = np.cumsum(pb)
