@@ -50,8 +50,8 @@ def compare_models_command(
     """
     from .. import __version__
     from ..demos.csv_io import read_demos_csv
-    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
     from ..inference.evidence import compare_models
+    from ..inference.methods import DiscreteOptions
     from ..results import check_writable, file_digest, write_json
 
     names = [m.strip() for m in models.split(",") if m.strip()]
@@ -60,7 +60,7 @@ def compare_models_command(
     mdp, _ = _load_mdp(map_spec, mdp_path)
     trajs = read_demos_csv(demos, mdp)
     prepare_solver()
-    hyp = HypothesisSet(resolve_thetas(thetas, mdp.n_features), resolve_betas(betas))
+    hyp = DiscreteOptions(thetas=thetas, betas=betas).hypotheses(mdp.n_features)
     t0 = time.perf_counter()
     with _progress() as bar:
         cmp = compare_models(mdp, trajs, hyp, names, holdout=holdout, tol=tol,

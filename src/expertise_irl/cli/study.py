@@ -81,10 +81,11 @@ def study(
     """
     from ..userstudy.evidence import parse_models
     from ..userstudy.run import StudyOptions
+    from ..userstudy.study import METHODS
 
     path = resolve_manifest(manifest)
-    if method not in ("discrete", "map", "nuts"):
-        raise InputError(f"--method must be one of discrete, map, nuts, got {method!r}")
+    if method not in METHODS:
+        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
     if models is not None and method != "discrete":
         raise InputError(f"--models needs --method discrete (got --method {method})")
     compared = parse_models(models) if models is not None else ()

@@ -193,7 +193,7 @@ def run_study(
     on_task: Callable | None = None,
 ) -> StudyOutcome:
     """Run (or resume) the study of ``manifest_path`` into ``out`` (see the module docstring)."""
-    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from ..inference.methods import DiscreteOptions
     from ..models import check_model
 
     t0 = time.perf_counter()
@@ -207,7 +207,7 @@ def run_study(
     names = tuple(manifest.tasks[0].plan.to_mdp().feature_names)
     hyp = None
     if opts.method == "discrete":
-        hyp = HypothesisSet(resolve_thetas(opts.thetas, len(names)), resolve_betas(opts.betas))
+        hyp = DiscreteOptions(thetas=opts.thetas, betas=opts.betas).hypotheses(len(names))
     out = Path(out)
     ident = _identity(manifest, opts)
     _open_out(out, ident, manifest)

@@ -72,9 +72,9 @@ def _plan_mdp(text: str, key: str):
 
 
 def _hypotheses(cfg: UserStudyConfig, n_features: int):
-    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from ..inference.methods import DiscreteOptions
 
-    return HypothesisSet(resolve_thetas(cfg.thetas, n_features), resolve_betas(cfg.betas))
+    return DiscreteOptions(thetas=cfg.thetas, betas=cfg.betas).hypotheses(n_features)
 
 
 def participant_seed(participant: str) -> int:
@@ -214,9 +214,10 @@ _PARTICIPANT = Column("participant", "string", "participant ID")
 
 
 def _study(name: str, tasks, run_task, columns: tuple[Column, ...], sort_by: tuple[str, ...],
-           description: str) -> Study:
-    """A user-study study: its config carries the data, so it has no scales."""
-    return Study(name=name, version=2,  # 2: over-relaxed solves (values move within the tolerance)
+           description: str, version: int = 2) -> Study:
+    """A user-study study: its config carries the data, so it has no scales. Version 2: over-relaxed
+    solves (values move within the tolerance)."""
+    return Study(name=name, version=version,
                  description=description, config_type=UserStudyConfig, scales={}, tasks=tasks,
                  run_task=run_task, columns=columns, sort_by=sort_by)
 
