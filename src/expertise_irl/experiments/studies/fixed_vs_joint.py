@@ -66,7 +66,7 @@ CONDITIONS = ("full", "fixed_theta", "fixed_beta")
 
 
 @lru_cache(maxsize=4)
-def _grid(preset: str, n_features: int) -> np.ndarray:
+def preset_grid(preset: str, n_features: int) -> np.ndarray:
     from ...hypotheses import THETA_PRESETS, theta_grid
 
     return theta_grid(THETA_PRESETS[preset], n_features)
@@ -80,7 +80,7 @@ def check_set_sizes(thetas: str, betas: str, ks) -> None:
         raise InputError(f"thetas must be one of {', '.join(THETA_PRESETS)}, got {thetas!r}")
     if betas not in BETA_PRESETS:
         raise InputError(f"betas must be one of {', '.join(BETA_PRESETS)}, got {betas!r}")
-    n = len(_grid(thetas, len(FEATURES)))
+    n = len(preset_grid(thetas, len(FEATURES)))
     if max(ks) >= n:
         raise InputError(f"k must be below {n} (the {thetas!r} grid's {len(FEATURES)}-feature θ directions, "
                          f"so an out-of-set θ exists), got {max(ks)}")
@@ -182,7 +182,7 @@ def theta_k(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int) -> np.ndar
     from ...hypotheses import sample_thetas
 
     _, mdp = environment(cfg, seed, e)
-    return sample_thetas(_grid(cfg.thetas, mdp.n_features), k,
+    return sample_thetas(preset_grid(cfg.thetas, mdp.n_features), k,
                          np.random.default_rng(seed_sequence(seed, (e, r, k))))
 
 
@@ -225,7 +225,7 @@ def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str,
         ft = fixed_theta_set(thetas, betas, th, rng_cond).thetas[0]
         fb = float(fixed_beta_set(thetas, betas, b, rng_cond).betas[0])
     else:
-        th, b = out_of_set_truth(_grid(cfg.thetas, mdp.n_features), thetas, rng_truth,
+        th, b = out_of_set_truth(preset_grid(cfg.thetas, mdp.n_features), thetas, rng_truth,
                                  beta_range=(cfg.out_of_set_beta_low, cfg.out_of_set_beta_high))
     value, log_policy = solve_padded(mdp, th, b, cfg.model)
     trajs = simulate_episodes(mdp, log_policy[0], sim_ss, cfg.n_episodes(group, truth), cfg.max_steps)

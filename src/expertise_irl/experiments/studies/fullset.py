@@ -119,7 +119,7 @@ def estimate_s(cfg: FullsetConfig, e: int) -> float:
     under both sets and their regret solves (measured: about 0.4 s for 20 episodes on 287 states)."""
     from ...hypotheses import BETA_PRESETS
 
-    n_hyp = len(cond._grid(cfg.thetas, len(FEATURES))) * len(BETA_PRESETS[cfg.betas])
+    n_hyp = len(cond.preset_grid(cfg.thetas, len(FEATURES))) * len(BETA_PRESETS[cfg.betas])
     total, maps = 2.0, set()
     for source, scfg in (("conditions", cfg.conditions()), ("optimisation", cfg.optimisation())):
         if source not in cfg.sources or e >= scfg.environments:
@@ -169,7 +169,7 @@ def run_task(cfg: FullsetConfig, seed: int, params: dict) -> tuple[dict[str, np.
         key = (scfg.map_min_size, scfg.map_max_size)
         if key not in solved:
             _, mdp = cond.environment(scfg, seed, e)
-            full = HypothesisSet(cond._grid(cfg.thetas, mdp.n_features), BETA_PRESETS[cfg.betas])
+            full = HypothesisSet(cond.preset_grid(cfg.thetas, mdp.n_features), BETA_PRESETS[cfg.betas])
             t0 = time.perf_counter()
             log_policy = solve(mdp, full.theta, full.beta, model=scfg.model).log_policy  # no padding
             spent = time.perf_counter() - t0

@@ -63,10 +63,10 @@ from .common import (
     truth_values,
 )
 from .fixed_vs_joint import (
-    _grid,
     check_set_sizes,
     environment,
     estimate_metrics,
+    preset_grid,
     simulate_episodes,
     solve_padded,
 )
@@ -165,7 +165,7 @@ def instance(cfg: OptimisationConfig, seed: int, e: int, i: int) -> Instance:
     from ...inference.hypothesis_sets import out_of_set_truth
 
     _, mdp = environment(cfg, seed, e)
-    grid = _grid(cfg.thetas, mdp.n_features)
+    grid = preset_grid(cfg.thetas, mdp.n_features)
     set_ss, truth_ss, sim_ss, method_ss = instance_seed(seed, e, i).spawn(4)
     thetas = sample_thetas(grid, cfg.k, np.random.default_rng(set_ss))
     theta, beta = out_of_set_truth(grid, thetas, np.random.default_rng(truth_ss),
