@@ -312,3 +312,31 @@ def test_the_config_model_reaches_the_people_and_the_inference():
     np.testing.assert_allclose(p_rel.value, v, atol=1e-9)
     with pytest.raises(InputError, match="model must be one of"):
         dataclasses.replace(SMOKE, model="softmax")
+
+
+class _BrokenEntryPoint:
+    name, value = "mine", "my_package.studies:STUDY"
+
+    def load(self):
+        raise ModuleNotFoundError("No module named 'my_package'")
+
+
+@pytest.mark.parametrize(("found", "message"), [
+    ([], "no study is registered (entry-point group 'expertise_irl.studies'): the installed metadata is "
+         "missing or stale; reinstall the package (pip install -e .)"),
+    ([_BrokenEntryPoint()], "the study entry point 'mine' (my_package.studies:STUDY) cannot be loaded: "
+                            "ModuleNotFoundError: No module named 'my_package'"),
+])
+def test_study_registry_names_what_is_wrong_with_its_entry_points(monkeypatch, found, message):
+    from expertise_irl.experiments import studies
+
+    monkeypatch.setattr(studies, "entry_points", lambda group: found)
+    studies._registered.cache_clear()
+    try:
+        with pytest.raises(InputError) as exc:
+            studies.get_study("conditions")
+        assert str(exc.value) == message
+    finally:
+        studies._registered.cache_clear()
+    monkeypatch.undo()
+    assert studies.get_study("conditions").name == "conditions"

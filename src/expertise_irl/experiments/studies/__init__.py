@@ -27,8 +27,15 @@ GROUP = "expertise_irl.studies"
 def _registered() -> tuple:
     found = []
     for ep in entry_points(group=GROUP):
-        value = ep.load()
+        try:
+            value = ep.load()
+        except Exception as exc:  # a broken provider is named, not a traceback
+            raise InputError(f"the study entry point {ep.name!r} ({ep.value}) cannot be loaded: "
+                             f"{type(exc).__name__}: {exc}") from None
         found += list(value) if isinstance(value, list | tuple) else [value]
+    if not found:
+        raise InputError(f"no study is registered (entry-point group {GROUP!r}): the installed "
+                         "metadata is missing or stale; reinstall the package (pip install -e .)")
     names = [s.name for s in found]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
