@@ -70,6 +70,11 @@ out = Console()
 err = Console(stderr=True)
 
 
+def plural(n: int, noun: str) -> str:
+    """``"1 episode"``, ``"2 episodes"``: a count and its noun in agreement (regular plurals)."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def _say(message: str) -> None:
     """Print plain text (no rich markup: θ vectors in brackets must print as they are)."""
     out.print(message, markup=False, highlight=False, soft_wrap=True)
@@ -98,6 +103,14 @@ def _fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
+def _os_reason(exc: OSError) -> str:
+    """The system's reason in the words of the package's own messages ("no such file", lower case)."""
+    if isinstance(exc, FileNotFoundError):
+        return "no such file"
+    text = exc.strerror or str(exc)
+    return text[:1].lower() + text[1:]
+
+
 def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Turn input problems into a one-line message and exit code 2 (no traceback)."""
 
@@ -110,15 +123,32 @@ def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except ConvergenceError as exc:
             _fail(str(exc), code=1)
         except OSError as exc:  # a file we were asked to read or write cannot be
-            _fail(f"{exc.filename or 'file'}: {exc.strerror or exc}")
+            _fail(f"{exc.filename or 'file'}: {_os_reason(exc)}")
         except KeyboardInterrupt:
             _fail("interrupted", code=130)
 
     return wrapper
 
 
+class QuietProgress(Progress):
+    """A progress display that appears with its first task: a command that fails before any work
+    starts leaves nothing on stderr above its error (not even an empty line)."""
+
+    def __enter__(self) -> QuietProgress:
+        return self
+
+    def add_task(self, *args, **kwargs):
+        if not self.live.is_started:
+            self.start()
+        return super().add_task(*args, **kwargs)
+
+    def __exit__(self, exc_type, exc_val, exc_tb) -> None:
+        if self.live.is_started:
+            self.stop()
+
+
 def _progress(unit: str = "hypotheses") -> Progress:
-    return Progress(
+    return QuietProgress(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
         TextColumn(f"{{task.completed}}/{{task.total}} {unit}"),

@@ -28,6 +28,7 @@ from ._app import (
     app,
     handles_errors,
     out,
+    plural,
     prepare_solver,
 )
 
@@ -157,7 +158,7 @@ def simulate(
     trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps,
                               model=model)
     write_demos_csv(out_path, trajs, mdp)
-    _say(f"wrote {out_path}: {trajs.n_episodes} episodes, {len(trajs)} actions "
+    _say(f"wrote {out_path}: {plural(trajs.n_episodes, 'episode')}, {plural(len(trajs), 'action')} "
          f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, model {model})")
     _report_capped(trajs, mdp, max_steps, model)
 
@@ -300,10 +301,8 @@ def render(
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), demos])
     _check_figure_format(out_path)
     zone_map = resolve_world(map_spec)
-    paths = None
-    if demos is not None:
-        mdp = zone_map.to_mdp()
-        paths = paths_to_xy(read_demos_csv(demos, mdp), mdp)
+    mdp = zone_map.to_mdp()  # refuses what simulate, infer and export-mdp refuse (an unreachable goal)
+    paths = None if demos is None else paths_to_xy(read_demos_csv(demos, mdp), mdp)
     draw = render_floor_plan_png if isinstance(zone_map, WarehouseMap) else render_map_png
     draw(zone_map, out_path, trajectories_xy=paths, title=zone_map.name)
     _say(f"wrote {out_path}")

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ._app import _say, app, err, handles_errors, prepare_solver
+from ._app import QuietProgress, _say, app, err, handles_errors, prepare_solver
 
 experiment_app = typer.Typer(
     help="Run a study's sweep (resumable, Parquet results), check on it, list the studies.",
@@ -51,7 +51,7 @@ def run_cmd(
                                                 "then recorded as `custom`.")] = None,
 ) -> None:
     """Run a sweep, or resume it: finished tasks are skipped, each task's rows land in one shard."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeRemainingColumn
 
     from ..experiments.engine import cores, run
     from ..experiments.spec import config_from_toml
@@ -60,7 +60,7 @@ def run_cmd(
     st = get_study(study)
     cfg = st.config(scale)  # a bad scale (or config file) is reported before any directory is made
     cfg = config_from_toml(st, config, cfg) if config is not None else None
-    bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+    bar = QuietProgress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TextColumn("tasks, {task.fields[rows]} rows"), TimeRemainingColumn(), console=err,
                    transient=False)
     state = {"task": None, "rows": 0}

@@ -20,6 +20,7 @@ from ._app import (
     app,
     handles_errors,
     out,
+    plural,
     prepare_solver,
 )
 
@@ -66,7 +67,8 @@ def compare_models_command(
         cmp = compare_models(mdp, trajs, hyp, names, holdout=holdout, tol=tol,
                              progress=lambda m: _solve_progress(bar, f"solving ({m})"))
     elapsed = time.perf_counter() - t0
-    table = Table(title=escape(f"{len(hyp)} hypotheses, {trajs.n_episodes} episodes, {len(trajs)} actions"))
+    table = Table(title=escape(f"{len(hyp)} hypotheses, {plural(trajs.n_episodes, 'episode')}, "
+                               f"{plural(len(trajs), 'action')}"))
     for col in ("model", "log evidence", "log BF vs best", "reading", "held-out log-lik / action",
                 "β̂", "group"):
         table.add_column(col, justify="left" if col in ("model", "reading", "group") else "right",
@@ -77,7 +79,7 @@ def compare_models_command(
                       f"{f.beta_hat:.3g}", f.expertise_group)
     out.print(table)
     if cmp.n_test_episodes:
-        _note(f"held out the last {cmp.n_test_episodes} of {trajs.n_episodes} episodes "
+        _note(f"held out the last {cmp.n_test_episodes} of {plural(trajs.n_episodes, 'episode')} "
               f"({cmp.n_test_actions} actions); fitted on the first {cmp.n_fit_episodes}")
     for why in cmp.unavailable.values():
         _note(why)

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._app import ModelOption, _map_files, _note, _say, app, handles_errors
+from ._app import ModelOption, _map_files, _note, _say, app, handles_errors, plural
 
 #: Options shared with the commands that ingest recordings.
 RateOption = Annotated[float, typer.Option(
@@ -86,7 +86,8 @@ def discretise(
         if ep.after_goal:
             _note(f"episode {ep.episode}: the robot drove on after entering a goal; "
                   f"{ep.after_goal} kept samples after it ignored (a goal ends the episode)")
-    _say(f"wrote {out_path} and {png}: {len(result.episodes)} episodes, {len(result.trajectories)} moves; "
+    _say(f"wrote {out_path} and {png}: {plural(len(result.episodes), 'episode')}, "
+         f"{plural(len(result.trajectories), 'move')}; "
          f"filled gaps {result.filled_gaps}, snapped samples {result.snapped_samples}")
 
 
@@ -148,7 +149,8 @@ def simulate_recordings_cmd(
     n = write_recording(out_path, recs)
     if demos is not None:
         write_demos_csv(demos, trajs, mdp, fmt="grid")
-    _say(f"wrote {out_path}: {len(recs)} episodes, {n} samples at {hz:g} Hz, {len(trajs)} moves "
+    _say(f"wrote {out_path}: {plural(len(recs), 'episode')}, {plural(n, 'sample')} at {hz:g} Hz, "
+         f"{plural(len(trajs), 'move')} "
          f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, model {model}; {gaps} gaps)"
          + (f"; moves in {demos}" if demos is not None else ""))
     _report_capped(trajs, mdp, max_steps, model)

@@ -1,0 +1,39 @@
+"""The wording of what the command line tells a user: one error line and nothing above it, the
+package's own words for a missing file, counts in agreement with their nouns."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from cli_helpers import invoke, ok
+
+
+def _cli(*args, cwd) -> subprocess.CompletedProcess:
+    """The installed command as a user runs it (stderr exactly as a terminal would get it)."""
+    exe = Path(sys.executable).with_name("expertise-irl")
+    return subprocess.run([str(exe), *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=120)
+
+
+def test_a_missing_file_is_named_in_the_package_s_words(tmp_path):
+    run = _cli("plot", "missing.json", "--out", "x.png", cwd=tmp_path)
+    assert run.returncode == 2
+    assert run.stderr == "error: missing.json: no such file\n"
+
+
+def test_an_error_before_any_work_leaves_no_empty_line_above_it(tmp_path):
+    """A sweep whose output cannot be made fails before its progress bar has a task: the error is the
+    whole of stderr (a progress display started on entry used to print an empty line first)."""
+    (tmp_path / "afile").write_text("x")
+    run = _cli("experiment", "run", "conditions", "--scale", "smoke", "--out", "afile/sub", cwd=tmp_path)
+    assert run.returncode == 2
+    assert run.stderr.splitlines() == ["error: afile/sub/rows: not a directory"], run.stderr
+
+
+def test_one_episode_is_one_episode(tmp_path):
+    out = tmp_path / "d.csv"
+    res = invoke("simulate", "corridor", "--theta", "1,0,0,0,0", "--beta", "0.05", "--episodes", "1",
+                 "--seed", "0", "--out", out)
+    ok(res)
+    assert ": 1 episode, " in res.stdout and "1 episodes" not in res.stdout, res.stdout
