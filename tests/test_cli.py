@@ -691,6 +691,19 @@ def test_render_rejects_an_unknown_figure_format(tmp_path):
     assert not (tmp_path / "map.txt").exists()
 
 
+@pytest.mark.parametrize("command", ["render", "export-mdp", "simulate", "infer"])
+def test_a_map_whose_goal_cannot_be_reached_is_refused_alike(command, corridor_csv, tmp_path):
+    walled = tmp_path / "walled.txt"
+    walled.write_text("S..#.\n...#G\n...#.\n")
+    out = tmp_path / {"render": "map.png", "export-mdp": "t.npz", "simulate": "d.csv",
+                      "infer": "r.json"}[command]
+    extra = {"simulate": ["--theta", THETA_STAR, "--beta", "1"],
+             "infer": ["--demos", corridor_csv]}.get(command, [])
+    assert_input_error(invoke(command, walled, *extra, "--out", out),
+                       "walled.txt", "state 0 (cell x=0, y=0) cannot reach a terminal (goal) state")
+    assert not out.exists()
+
+
 def test_infer_leaves_a_users_tmp_file_alone(corridor_csv, tmp_path):
     precious = tmp_path / "r.json.tmp"
     precious.write_text("precious\n")
