@@ -168,7 +168,8 @@ def test_episode_end_writes_result_and_picks_the_next_start(tmp_path, zone_map, 
             for a in path_to_goal(mdp, session.position):
                 r = move(ws, ACTION_NAMES[a])
             assert r["event"] == "episode_done" and "Goal reached" in r["message"]
-            assert r["episodes_done"] == episode + 1 and r["step"] == 0
+            assert f"(episode {episode} done;" in r["message"]  # numbered as in demos.csv
+            assert r["episodes_done"] == episode + 1 and r["step"] == 0 and r["episode"] == episode + 1
             assert r["start"]["how"] == mode and r["path"] == [r["position"]]
             doc = json.loads((tmp_path / "result.json").read_text())
             assert doc["data"]["episodes"] == episode + 1 and doc["data"]["actions"] == r["actions"]
@@ -178,6 +179,46 @@ def test_episode_end_writes_result_and_picks_the_next_start(tmp_path, zone_map, 
         assert "drawn uniformly" in r["start"]["why"]
     trajs = read_demos_csv(tmp_path / "demos.csv", mdp)
     assert trajs.n_episodes == 2 and len(trajs) == session.estimator.n_observed
+    rows = (tmp_path / "demos.csv").read_text().splitlines()[1:]
+    assert sorted({int(r.split(",")[0]) for r in rows}) == [0, 1]  # the page's episode numbers
+
+
+def test_the_start_mode_survives_a_restart(tmp_path, zone_map, hyp):
+    """The random/active toggle is kept in result.json: a restart before any move, between
+    episodes and mid-episode comes back in the mode the page last set."""
+    def starts():
+        return [(d["episode"], d["how"]) for d in json.loads((tmp_path / "result.json").read_text())[
+            "live"]["starts"]]
+
+    session, client = make(zone_map, hyp, tmp_path)
+    mdp = session.mdp
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        ws.send_text(json.dumps({"type": "mode", "mode": "random"}))
+        assert ws.receive_json()["mode"] == "random"
+    assert json.loads((tmp_path / "result.json").read_text())["live"]["mode"] == "random"
+    again, client = make(zone_map, hyp, tmp_path)  # stopped before the first move
+    assert again.mode == "random" and again.start.how == "random"
+    with client.websocket_connect(WS) as ws:
+        assert ws.receive_json()["state"]["mode"] == "random"
+        for a in path_to_goal(mdp, again.position):
+            r = move(ws, ACTION_NAMES[a])
+        assert r["event"] == "episode_done" and r["start"]["how"] == "random"
+    third, client = make(zone_map, hyp, tmp_path)  # stopped between episodes: the same start again
+    assert third.mode == "random" and third.position == again.position
+    assert starts() == [(0, "random"), (1, "random")]  # one entry per episode, not one per restart
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        move(ws, ACTION_NAMES[path_to_goal(mdp, third.position)[0]])
+    fourth, client = make(zone_map, hyp, tmp_path)  # stopped mid-episode 1
+    assert fourth.mode == "random" and fourth.start.how == "resumed"
+    with client.websocket_connect(WS) as ws:
+        state = ws.receive_json()["state"]
+        assert state["mode"] == "random" and state["episode"] == 1
+        assert state["start"]["why"].startswith("Resumed episode 1 ")
+        ws.send_text(json.dumps({"type": "mode", "mode": "active"}))
+        assert ws.receive_json()["mode"] == "active"
+    assert make(zone_map, hyp, tmp_path)[0].mode == "active"
 
 
 def test_killed_mid_episode_resumes_from_disk(tmp_path, zone_map, hyp):
@@ -276,11 +317,14 @@ def test_sigkill_mid_episode_then_restart_resumes(tmp_path, zone_map):
     out = tmp_path / "rec"
     mdp = zone_map.to_mdp()
 
-    async def drive(url, n):
+    async def drive(url, n, mode=None):
         async with websockets.connect(url) as ws:
             state = json.loads(await ws.recv())["state"]
             await ws.send("x" * 50_000)  # oversized for the protocol, answered, not fatal
             assert "too large" in json.loads(await ws.recv())["message"]
+            if mode is not None:
+                await ws.send(json.dumps({"type": "mode", "mode": mode}))
+                assert json.loads(await ws.recv())["mode"] == mode
             s = int(zone_map.state_index()[state["position"][1], state["position"][0]])
             plan = path_to_goal(mdp, s)
             for a in plan[:n]:
@@ -290,7 +334,7 @@ def test_sigkill_mid_episode_then_restart_resumes(tmp_path, zone_map):
 
     proc, url = spawn_live(map_path, out)
     try:
-        before, plan = asyncio.run(drive(url, 2))
+        before, plan = asyncio.run(drive(url, 2, mode="random"))
         assert before["actions"] == 2 and len(plan) > 2
     finally:
         proc.send_signal(signal.SIGKILL)
@@ -303,6 +347,7 @@ def test_sigkill_mid_episode_then_restart_resumes(tmp_path, zone_map):
         assert after["actions"] == 2 and after["step"] == 2 and after["position"] == before["position"]
         assert after["estimate"]["beta_hat"] == pytest.approx(before["estimate"]["beta_hat"], abs=1e-12)
         assert after["start"]["how"] == "resumed" and rest == plan[2:]
+        assert after["mode"] == "random"  # the page's toggle, as it was left
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=30)

@@ -7,9 +7,11 @@ file: the session writes only ``DIR/demos.csv`` (every accepted action appended,
 flushed and synced as it happens, grid format ``episode,step,x,y``, with the ``heading``
 column on a warehouse floor plan) and
 ``DIR/result.json`` (the discrete-set result, written when the session opens and
-rewritten atomically after every episode). Opening a session on a DIR that already
-holds ``demos.csv`` replays it, so the belief, the history and an episode cut short
-all resume.
+rewritten atomically after every episode and when the start mode changes). Opening a
+session on a DIR that already holds ``demos.csv`` replays it, so the belief, the history,
+an episode cut short and the start mode (active or random, kept in ``result.json``) all
+resume. Episodes are numbered from 0 everywhere, as in the ``episode`` column of
+``demos.csv``.
 """
 
 from __future__ import annotations
@@ -102,11 +104,20 @@ class LiveSession:
         if kind == "sync":
             return [self.state_message()]
         if kind == "mode":
-            self.mode = msg["mode"]
-            text = ("The robot will choose the next start (the most informative one)."
-                    if self.mode == "active" else "The next start will be drawn at random.")
-            return [self.state_message(message=text)]
+            return self.set_mode(msg["mode"])
         return self.move(ACTIONS[msg["action"]])
+
+    def set_mode(self, mode: str) -> list[dict[str, Any]]:
+        """Switch how the next start is chosen; saved in ``result.json`` so that a restart keeps it."""
+        self.mode = mode
+        text = ("The robot will choose the next start (the most informative one)."
+                if mode == "active" else "The next start will be drawn at random.")
+        try:
+            self.write_result()
+        except OSError as exc:
+            text += (f" (Could not save it in {RESULT_NAME}: {exc.strerror or exc}; a restart will "
+                     "not keep it.)")
+        return [self.state_message(message=text)]
 
     def move(self, action: int) -> list[dict[str, Any]]:
         s = self.position
@@ -136,7 +147,7 @@ class LiveSession:
         self.write_result()
         self.choose_start()
         self.episode_starts.append(len(self.history_beta))
-        text = (f"Goal reached in {n_moves} moves (episode {e + 1} done; saved to {RESULT_NAME}). "
+        text = (f"Goal reached in {n_moves} moves (episode {e} done; saved to {RESULT_NAME}). "
                 f"{self.start.why}")
         return [self.state_message(event="episode_done", message=text)]
 
@@ -165,7 +176,8 @@ class LiveSession:
                               settings=self.settings,
                               data={"episodes": trajs.n_episodes, "actions": len(trajs),
                                     "demos": DEMOS_NAME})
-        doc["live"] = {"starts": self.starts_log, "episode_open": self.estimator.episode_open}
+        doc["live"] = {"starts": self.starts_log, "episode_open": self.estimator.episode_open,
+                       "mode": self.mode}
         write_json(self.result_path, doc)
 
     # ------------------------------------------------------------ start choice
@@ -195,7 +207,10 @@ class LiveSession:
                 f"(median {float(np.median(sc.gain)):.2f}).", gain=g)
         self.start = choice
         self.position = choice.state
-        self.starts_log.append({"episode": self._next_episode_label(), "xy": self._xy(choice.state),
+        label = self._next_episode_label()  # a restart between episodes chooses this start again
+        self.starts_log = [d for d in self.starts_log
+                           if not (isinstance(d, dict) and d.get("episode") == label)]
+        self.starts_log.append({"episode": label, "xy": self._xy(choice.state),
                                 "how": choice.how, "expected_gain": choice.gain})
         return choice
 
@@ -297,6 +312,8 @@ def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, 
     out_dir.mkdir(parents=True, exist_ok=True)
     est = OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
     session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples)
+    previous = _previous_live(out_dir / RESULT_NAME)
+    session.mode = _previous_mode(previous, session.mode)
     if trajs is not None and len(trajs):
         prior = est.belief()
         est.feed(trajs)
@@ -305,11 +322,12 @@ def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, 
         session.history_entropy = trace.entropy[1:].tolist()
         first = np.flatnonzero(np.append(True, trajs.episode[1:] != trajs.episode[:-1]))
         session.episode_starts = first.tolist()
-        session.starts_log = _previous_starts(out_dir / RESULT_NAME)
+        starts = previous.get("starts")
+        session.starts_log = starts if isinstance(starts, list) else []
     if est.episode_open:
         session.position = int(est.current_state)
         s0 = int(est._pairs[[p[0] for p in est._pairs].index(est._pairs[-1][0])][2])
-        session.start = StartChoice(s0, "resumed", f"Resumed episode {est._pairs[-1][0] + 1} where it "
+        session.start = StartChoice(s0, "resumed", f"Resumed episode {est._pairs[-1][0]} where it "
                                     f"stopped, at {session._cell(session.position)}.")
     else:
         if trajs is not None and len(trajs):
@@ -372,11 +390,24 @@ def _check_same_map(result: Path, settings: dict[str, Any]) -> None:
                          "choose another --out")
 
 
-def _previous_starts(result: Path) -> list[dict[str, Any]]:
+def _previous_live(result: Path) -> dict[str, Any]:
+    """The ``live`` section of a previous session's ``result.json`` (empty if there is none)."""
     import json
 
     try:
-        starts = json.loads(result.read_text(encoding="utf-8"))["live"]["starts"]
+        live = json.loads(result.read_text(encoding="utf-8"))["live"]
     except (OSError, ValueError, KeyError, TypeError):
-        return []
-    return starts if isinstance(starts, list) else []
+        return {}
+    return live if isinstance(live, dict) else {}
+
+
+def _previous_mode(live: dict[str, Any], default: str) -> str:
+    """The start mode a previous session left (``live.mode``; before it was saved, how the last
+    start was chosen), else ``default``."""
+    mode = live.get("mode")
+    if mode in MODES:
+        return mode
+    starts = live.get("starts")
+    last = starts[-1] if isinstance(starts, list) and starts else None
+    how = last.get("how") if isinstance(last, dict) else None
+    return how if how in MODES else default

@@ -187,7 +187,7 @@
     bars($("theta-bars"), info.feature_names.map((f, i) => [f, est.theta_hat[i]]), "theta");
     $("status").innerHTML = "";
     const parts = [
-      ["map", info.map.name.split(/[\\/]/).pop()], ["episode", s.episode + 1], ["step", s.step],
+      ["map", info.map.name.split(/[\\/]/).pop()], ["episode", s.episode], ["step", s.step],
       ["at", "(" + s.position[0] + ", " + s.position[1] + ")"],
       ["actions recorded", s.actions], ["episodes done", s.episodes_done],
     ];
@@ -198,6 +198,7 @@
                   at: "position" }[k] || k;
       span.dataset.value = String(v);
       span.textContent = k + " " + v;
+      if (k === "episode") span.title = "numbered from 0, as in the episode column of demos.csv";
       $("status").appendChild(span);
     }
     $("active").checked = s.mode === "active";
