@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -31,3 +32,15 @@ def test_committed_report_rebuilds_from_committed_rows(run, tmp_path):
                                       pd.read_csv(table), check_exact=False, rtol=1e-9)
     links = [line for line in (ROOT / "README.md").read_text().splitlines() if f"]({run}/" in line]
     assert links, f"docs/reproduction/README.md does not link {run}"
+
+
+def test_report_numbers_are_written_to_ten_significant_digits(tmp_path):
+    """Rebuilding a report on another machine writes the same text: no number in its CSV files
+    carries digits beyond the tenth, where summation order and SIMD width differ."""
+    build_report(ROOT / "cardinality-paper", tmp_path / "report")
+    files = [tmp_path / "report" / "claims.csv", *sorted((tmp_path / "report" / "tables").glob("*.csv"))]
+    assert len(files) > 1
+    for f in files:
+        for mantissa in re.findall(r"(?<![\w.])-?(\d+\.\d+)(?:e[-+]\d+)?(?![\w.])", f.read_text()):
+            digits = mantissa.replace(".", "").lstrip("0")
+            assert len(digits) <= 10, f"{f.name}: {mantissa}"

@@ -19,6 +19,10 @@ from .parts import Report
 
 MARKER = ".expertise-irl-report.json"
 
+#: Numbers in the CSV files, to 10 significant digits: a rebuild on another machine (another
+#: summation order, another SIMD width) writes the same text, not a different last digit.
+FLOAT_FORMAT = "%.10g"
+
 
 def prepare(out: Path) -> None:
     """Make ``out`` ready for a report: create it, or clear the previous report in it."""
@@ -67,9 +71,9 @@ def write(report: Report, sweep, out: Path) -> Path:
         (out / "tables").mkdir(exist_ok=True)
     for t in tables:
         path = out / "tables" / f"{t.name}.csv"
-        t.data.to_csv(path, index=False)
+        t.data.to_csv(path, index=False, float_format=FLOAT_FORMAT)
         files.append(str(path.relative_to(out)))
-    claims_frame(report.claims).to_csv(out / "claims.csv", index=False)
+    claims_frame(report.claims).to_csv(out / "claims.csv", index=False, float_format=FLOAT_FORMAT)
     files.append("claims.csv")
     path = out / "report.md"
     path.write_text(render(report, sweep))
