@@ -239,11 +239,41 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
     res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
     assert res.exit_code == 0 and "0 engine task(s) run, 4 already done" in res.stdout
     assert (out / "study.csv").read_bytes() == before
-    # Other options on the same DIR are refused, not mixed in.
-    assert_input_error(
-        invoke("study", study_dir / "manifest.csv", "--out", out, "--betas", "0.1,1"),
-        "holds a study of other inputs or options",
-    )
+    # Other options or inputs on the same DIR are refused, naming what differs; nothing changes.
+    assert_refused_by_name(study_dir, out, monkeypatch)
+
+
+def snapshot(d: Path) -> dict[str, tuple[int, bytes]]:
+    return {str(p): (p.stat().st_mtime_ns, p.read_bytes()) for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def assert_refused_by_name(study_dir: Path, out: Path, monkeypatch) -> None:
+    before = snapshot(out)
+    m = study_dir / "manifest.csv"
+    fresh = f"use another --out, or delete {out} to start again"
+    assert_input_error(invoke("study", m, "--out", out, "--betas", "0.1,1", "--fill-gaps"),
+                       "holds a study run with --betas paper-real, no --fill-gaps; this command has "
+                       "--betas 0.1,1, --fill-gaps;", fresh)
+    text = (study_dir / "p2.csv").read_text()
+    write(study_dir / "p2.csv", text.replace(",0.5,0.5\n", ",0.55,0.5\n", 1))
+    assert_input_error(invoke("study", m, "--out", out),
+                       "holds a study of other inputs (the recording of manifest line 3 (p2.csv) changed);",
+                       fresh)
+    assert_input_error(invoke("study", m, "--out", out, "--model", "boltzmann"),
+                       "run with --model maxent; this command has --model boltzmann (and the recording of "
+                       "manifest line 3 (p2.csv) changed);")
+    write(study_dir / "p2.csv", text)
+    assert snapshot(out) == before
+    # The same study named from its own folder (other paths, same files) resumes.
+    monkeypatch.chdir(study_dir)
+    res = invoke("study", "manifest.csv", "--out", "out", "--workers", "1")
+    assert res.exit_code == 0 and "0 engine task(s) run, 4 already done" in res.stdout, res.output
+    # A study.json without the options and inputs: the difference cannot be named, only that there is one.
+    doc = json.loads((out / "study.json").read_text())
+    write(out / "study.json", json.dumps({"hash": "0" * 64, "version": doc["version"]}))
+    version = doc["version"]
+    assert_input_error(invoke("study", m, "--out", out), fresh,
+                       f"holds a study of other inputs or options (written by expertise-irl {version})")
 
 
 # ----------------------------------------------------------------------- bundled study

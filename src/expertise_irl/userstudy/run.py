@@ -138,6 +138,80 @@ def _identity(manifest: Manifest, opts: StudyOptions) -> dict[str, Any]:
     return ident
 
 
+def _flag(name: str, value: Any) -> str:
+    """An option as the command line gives it: ``--model maxent``, ``--fill-gaps``, ``no --snap``."""
+    flag = "--" + name.replace("_", "-")
+    if isinstance(value, list | tuple):
+        value = ",".join(map(str, value))
+    if value is None or value is False or value == "":
+        return f"no {flag}"
+    return flag if value is True else f"{flag} {value:g}" if isinstance(value, float) else f"{flag} {value}"
+
+
+def _changed_options(old: dict[str, Any], new: dict[str, Any]) -> list[tuple[str, str]]:
+    """``(there, here)`` for each option that differs (an option missing from an older study.json
+    counts as its default)."""
+    out = []
+    for name, default in asdict(StudyOptions()).items():
+        a, b = old.get(name, default), new.get(name, default)
+        if (list(a) if isinstance(a, list | tuple) else a) != (list(b) if isinstance(b, list | tuple) else b):
+            out.append((_flag(name, a), _flag(name, b)))
+    return out
+
+
+def _rel(path: str | Path, base: Path) -> str:
+    p = Path(path)
+    return (p.relative_to(base) if p.is_relative_to(base) else p).as_posix()
+
+
+def _relative(inputs: dict[str, str], manifest_path: str) -> dict[str, str]:
+    """A study's input digests keyed by path relative to its manifest's folder (``manifest`` as is),
+    so that a study started from another working directory compares equal."""
+    base = Path(manifest_path).parent
+    return {(k if k == "manifest" else _rel(k, base)): digest for k, digest in inputs.items()}
+
+
+def _changed_inputs(old: dict[str, str], new: dict[str, str], manifest: Manifest) -> list[str]:
+    """What differs between two studies' inputs (keyed by :func:`_relative`), naming manifest lines."""
+    base = manifest.path.parent
+    lines: dict[str, str] = {}
+    for t in manifest.tasks:
+        for kind, p in ((t.kind, t.source), ("floor plan", t.map_path)):
+            rel = _rel(p, base)
+            lines.setdefault(rel, f"the {kind} of manifest line {t.line} ({rel})")
+    out = []
+    for key in sorted(set(old) | set(new), key=lambda k: (k != "manifest", k)):
+        what = "the manifest" if key == "manifest" else lines.get(key, key)
+        if key not in old:
+            out.append(f"{what} is new")
+        elif key not in new:
+            out.append(f"the study read {key}, this command does not")
+        elif old[key] != new[key]:
+            out.append(f"{what} changed")
+    return out
+
+
+def _mismatch(out: Path, old: dict[str, Any], ident: dict[str, Any], manifest: Manifest) -> str | None:
+    """Why the study in ``out`` (its ``study.json``: ``old``) is not this one; None when it is (the
+    same options and inputs, the manifest perhaps named from another working directory)."""
+    fresh = f"use another --out, or delete {out} to start again"
+    if not isinstance(old.get("options"), dict) or not isinstance(old.get("inputs"), dict) \
+            or old.get("layout") != ident["layout"]:
+        return (f"{out}: holds a study of other inputs or options (written by expertise-irl "
+                f"{old.get('version', '?')}); {fresh}")
+    options = _changed_options(old["options"], ident["options"])
+    inputs = _changed_inputs(_relative(old["inputs"], str(old.get("manifest", ""))),
+                             _relative(ident["inputs"], str(manifest.path)), manifest)
+    if not options and not inputs:
+        return None
+    said = "; ".join(inputs[:3]) + (f"; {len(inputs) - 3} more input(s)" if len(inputs) > 3 else "")
+    if not options:
+        return f"{out}: holds a study of other inputs ({said}); {fresh}"
+    there, here = (", ".join(x) for x in zip(*options, strict=True))
+    also = f" (and {said})" if inputs else ""
+    return f"{out}: holds a study run with {there}; this command has {here}{also}; {fresh}"
+
+
 def _open_out(out: Path, ident: dict[str, Any], manifest: Manifest) -> None:
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory")
@@ -147,11 +221,10 @@ def _open_out(out: Path, ident: dict[str, Any], manifest: Manifest) -> None:
             old = json.loads(marker.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError):
             raise InputError(f"{marker}: unreadable; use another --out") from None
-        if old.get("hash") != ident["hash"]:
-            raise InputError(
-                f"{out}: holds a study of other inputs or options ({str(old.get('hash'))[:12]}, "
-                f"not {ident['hash'][:12]}); use another --out"
-            )
+        if not isinstance(old, dict):
+            raise InputError(f"{marker}: not a study record; use another --out")
+        if old.get("hash") != ident["hash"] and (why := _mismatch(out, old, ident, manifest)):
+            raise InputError(why)
         return
     if out.exists() and any(out.iterdir()):
         raise InputError(f"{out}: directory is not empty and holds no study; use another --out")
