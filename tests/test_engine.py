@@ -116,7 +116,8 @@ def test_other_seed_or_config_is_refused(reference, tmp_path):
     before = sorted(p.name for p in (out / "rows").iterdir())
     with pytest.raises(InputError, match="refusing to mix"):
         run(STUDY, out, scale="smoke", seed=1, workers=1)
-    with pytest.raises(InputError, match="refusing to mix"):
+    named = r"scale smoke; this command has scale custom and another config \(episodes = 3 there, 4 here\); "
+    with pytest.raises(InputError, match=named):
         run(STUDY, out, config=dataclasses.replace(SMOKE, episodes=4), seed=0, workers=1)
     with pytest.raises(InputError, match="refusing to mix"):
         run(STUDY, out, scale="small", seed=0, workers=1)

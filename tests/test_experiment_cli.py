@@ -37,9 +37,12 @@ def test_rerun_skips_finished_tasks(sweep):
 def test_other_seed_on_same_dir_is_one_line_error(sweep):
     out, _ = sweep
     one_line_error(invoke("experiment", "run", "conditions", "--out", str(out), "--seed", "5"),
-                   "refusing to mix", "seed 0", "seed 5")
+                   "holds study 'conditions' run with seed 0; this command has seed 5; refusing to mix",
+                   f"delete {out} to start again")
     one_line_error(invoke("experiment", "run", "conditions", "--out", str(out), "--scale", "small"),
-                   "refusing to mix")
+                   "run with scale smoke; this command has scale small; refusing to mix")
+    one_line_error(invoke("experiment", "run", "cardinality", "--out", str(out), "--scale", "smoke"),
+                   "holds study 'conditions', not 'cardinality'; refusing to mix")
 
 
 def test_status_lists_failures_and_time_left(tmp_path, monkeypatch):

@@ -50,6 +50,38 @@ def config_hash(identity: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+_IDENTITY = (("study_version", "study version"), ("scale", "scale"), ("seed", "seed"))
+
+
+def _config_fields(old: dict[str, Any], new: dict[str, Any]) -> str:
+    """``another config (k = a there, b here; …)``, three fields named; the config hashes when the
+    fields cannot be compared; "" when the configs are the same."""
+    cfg, here = old.get("config"), new["config"]
+    if not isinstance(cfg, dict):
+        return f"another config ({str(old.get('config_hash'))[:12]} there, {new['config_hash'][:12]} here)"
+    fields = [k for k in sorted(set(cfg) | set(here)) if cfg.get(k) != here.get(k)]
+    if not fields:
+        return ""
+    named = "; ".join(f"{k} = {cfg.get(k)!r} there, {here.get(k)!r} here" for k in fields[:3])
+    return f"another config ({named}" + (f"; {len(fields) - 3} more" if len(fields) > 3 else "") + ")"
+
+
+def _difference(old: dict[str, Any], new: dict[str, Any]) -> str:
+    """What makes the sweep in a directory (manifest ``old``) another than ``new``: the study, its
+    version, scale or seed, and the config fields where a scale is custom or the same."""
+    if old.get("study") != new["study"]:
+        return f"study {old.get('study')!r}, not {new['study']!r}"
+    changed = [(f"{label} {old.get(k)}", f"{label} {new[k]}")
+               for k, label in _IDENTITY if old.get(k) != new[k]]
+    config = _config_fields(old, new) if old.get("scale") == new["scale"] or "custom" in (
+        old.get("scale"), new["scale"]) else ""
+    if not changed:
+        return f"study {new['study']!r} with {config or 'another config'}"
+    there, here = (", ".join(x) for x in zip(*changed, strict=True))
+    also = f" and {config}" if config else ""
+    return f"study {new['study']!r} run with {there}; this command has {here}{also}"
+
+
 def versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
     for name in _VERSIONED:
@@ -144,23 +176,8 @@ class Store:
         if (root / MANIFEST).exists():
             old = self.read_manifest()
             if old.get("config_hash") != manifest["config_hash"]:
-                same_sweep = all(old.get(k) == manifest[k]
-                                 for k in ("study", "study_version", "scale", "seed"))
-                changed = [k for k in sorted(set(old.get("config", {})) | set(manifest["config"]))
-                           if old.get("config", {}).get(k) != manifest["config"].get(k)]
-                if same_sweep and changed and isinstance(old.get("config"), dict):
-                    raise InputError(
-                        f"{root}: holds study {old.get('study')!r} with another config ("
-                        + "; ".join(f"{k} = {old['config'].get(k)!r} there, {manifest['config'].get(k)!r} "
-                                    "here" for k in changed[:3])
-                        + (f"; {len(changed) - 3} more" if len(changed) > 3 else "")
-                        + "); refusing to mix results, use another --out")
-                raise InputError(
-                    f"{root}: holds study {old.get('study')!r} (scale {old.get('scale')}, seed "
-                    f"{old.get('seed')}, config {str(old.get('config_hash'))[:12]}), not study "
-                    f"{manifest['study']!r} (scale {manifest['scale']}, seed {manifest['seed']}, config "
-                    f"{manifest['config_hash'][:12]}); refusing to mix results, use another --out"
-                )
+                raise InputError(f"{root}: holds {_difference(old, manifest)}; refusing to mix results, use "
+                                 f"another --out, or delete {root} to start again")
             self._make_dirs()
             return old
         if root.exists() and any(root.iterdir()):
