@@ -1,7 +1,8 @@
 """End to end in a real headless Chromium (Debian's ``chromium``, driven by Python Playwright):
 start ``expertise-irl live``, drive an episode to the goal with key presses, check that the shown
 β̂ changes after every action, that ``demos.csv`` holds exactly those actions, that a move into a
-wall is refused and not recorded, and that the real server refuses path traversal.
+wall is refused and not recorded, and that the real server refuses path traversal; a large floor
+plan fills the window.
 
 The test saves a screenshot of the page mid-episode in its temporary directory; with
 ``EXPERTISE_IRL_SCREENSHOT=PATH`` it also copies it there (that is how ``docs/images/live.png``
@@ -206,3 +207,24 @@ def test_drive_a_floor_plan_in_chromium(tmp_path):
     assert rows[0] == ["episode", "step", "x", "y", "heading"]
     first = {"horizontal": "h", "vertical": "v"}[start_heading]
     assert [r[4] for r in rows[1:]] == [first] + ["v" if m == "down" else "h" for m in PLAN_MOVES]
+
+
+def test_a_large_floor_plan_fills_the_window(tmp_path):
+    """The bundled study's 67×40 floor plan gets comfortable cells at 1280×800 (the map fills the
+    space beside the estimate), and follows the window when it is resized."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
+    from importlib import resources
+
+    plan = Path(str(resources.files("expertise_irl") / "userstudy" / "example" / "spec-a.txt"))
+    with serving(plan, tmp_path / "rec") as url, live_page(sync_api, url) as (page, errors):
+        page.set_viewport_size({"width": 1280, "height": 800})
+        canvas, panel = page.locator("#map"), page.locator("section.right")
+        sync_api.expect(canvas).to_have_attribute("data-cell", re.compile(r"^(1[4-9]|[2-5]\d)$"))  # ≥ 14 px
+        cell, box, side = int(canvas.get_attribute("data-cell")), canvas.bounding_box(), panel.bounding_box()
+        assert box["width"] == 67 * cell and box["height"] == 40 * cell
+        assert side["x"] > box["x"] + box["width"] and side["x"] + side["width"] <= 1280  # beside it
+        assert box["y"] + box["height"] < 800  # and the whole map on screen
+        page.set_viewport_size({"width": 700, "height": 600})  # too narrow: the panel goes below
+        sync_api.expect(canvas).to_have_attribute("data-cell", "9")
+        assert panel.bounding_box()["y"] > canvas.bounding_box()["y"] + 40 * 9
+        assert not errors, errors

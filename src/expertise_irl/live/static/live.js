@@ -45,19 +45,36 @@
   }
 
   // ---------------------------------------------------------------- map
+  const CELL_MAX = 56, CELL_MIN = 8, CELL_COMFORT = 16;  // px
+  const PANEL_WANT = 420, PANEL_MIN = 280;  // px: the estimate panel beside the map
+
+  // The cell size that lets the map fill the window: beside the estimate panel (narrowed down to
+  // PANEL_MIN when that gives a large map comfortable cells) and above the controls. Where even
+  // that leaves cells under CELL_MIN, the map takes the whole width and the panel goes below it.
   function cellSize() {
-    const m = info.map;
-    return Math.max(8, Math.floor(Math.min(640 / m.width, 520 / m.height, 56)));
+    const m = info.map, main = document.querySelector("main"), style = getComputedStyle(main);
+    const map = $("map").getBoundingClientRect(), left = document.querySelector(".left");
+    const width = main.clientWidth - parseFloat(style.paddingLeft) - parseFloat(style.paddingRight) - 2;
+    const below = left.getBoundingClientRect().bottom - map.bottom + parseFloat(style.paddingBottom);
+    const height = window.innerHeight - (map.top + window.scrollY) - below - 2;
+    const gap = parseFloat(style.columnGap) || 0;
+    const fit = (panel) => Math.floor(Math.min((width - panel - gap) / m.width, height / m.height, CELL_MAX));
+    let cs = fit(PANEL_WANT);
+    if (cs < CELL_COMFORT) cs = Math.max(cs, fit(PANEL_MIN));
+    if (cs < CELL_MIN) cs = Math.floor(Math.min(width / m.width, CELL_MAX));
+    return Math.max(CELL_MIN, cs);
   }
 
   function drawMap() {
     const m = info.map, c = info.colors, cs = cellSize();
     const canvas = $("map"), dpr = window.devicePixelRatio || 1;
     const W = m.width * cs, H = m.height * cs;
-    if (canvas.width !== Math.round(W * dpr)) {
+    if (canvas.width !== Math.round(W * dpr) || canvas.height !== Math.round(H * dpr)) {
       canvas.width = Math.round(W * dpr); canvas.height = Math.round(H * dpr);
       canvas.style.width = W + "px"; canvas.style.height = H + "px";
+      document.querySelector(".left").style.width = Math.max(W + 2, 360) + "px";
     }
+    canvas.dataset.cell = String(cs);
     const g = canvas.getContext("2d");
     g.setTransform(dpr, 0, 0, dpr, 0, 0);
     const arrows = { ">": [1, 0], "<": [-1, 0], "^": [0, -1], "v": [0, 1] };
@@ -133,7 +150,7 @@
 
   function drawHistory() {
     const canvas = $("history"), dpr = window.devicePixelRatio || 1;
-    const W = 440, H = 170;
+    const W = Math.max(200, Math.min(440, canvas.parentElement.clientWidth - 24)), H = 170;  // the card's width
     if (canvas.width !== W * dpr) {
       canvas.width = W * dpr; canvas.height = H * dpr; canvas.style.width = W + "px"; canvas.style.height = H + "px";
     }
@@ -222,5 +239,11 @@
     }
     $("active").addEventListener("change", (ev) => send({ type: "mode", mode: ev.target.checked ? "active" : "random" }));
     connect();
+  });
+  let resizing = false;
+  window.addEventListener("resize", () => {  // the map follows the window's size
+    if (resizing || !info) return;
+    resizing = true;
+    requestAnimationFrame(() => { resizing = false; drawMap(); drawHistory(); });
   });
 })();
