@@ -324,3 +324,54 @@ def test_impossible_demonstration_raises(tiny):
     bad = Trajectories(np.array([0]), np.array([0]), np.array([3]), np.array([0]))  # acts from the goal
     with pytest.raises(InputError, match="terminal"):
         extended_birl(mdp, bad, n_iter=10, rng=0)
+
+
+# ------------------------------------------------------------------------ a chain that does not move
+def _document(res, names):
+    """The result document of an Algorithm 1 chain, as `infer` writes it."""
+    from expertise_irl.inference.methods import BIRLOptions, MethodRun, document, get_method
+
+    fields = {**get_method("birl").describe(res, BIRLOptions(variant="simplex"), names), "run_time_s": 1.0}
+    return document(MethodRun("birl", res, fields, {}), feature_names=names, settings={}, data={})
+
+
+def test_a_chain_frozen_in_beta_reports_no_interval_and_says_so(tiny):
+    """The prior allows one β (0.4), so every β proposal is rejected while θ moves: β's interval and
+    R-hat are null with the reason, its ESS 0 (ArviZ would say 400, the chain's length), and the
+    first warning says the chain did not move in β and what to change."""
+    mdp, trajs = tiny
+    res = extended_birl(mdp, trajs, n_iter=500, variant="simplex", rng=np.random.default_rng(7),
+                        log_prior=lambda t, b: 0.0 if abs(b - 0.4) < 1e-9 else -math.inf, **TINY_GRID)
+    assert (res.kept_beta == 0.4).all() and len(np.unique(res.kept_theta, axis=0)) > 1
+    names = list(mdp.feature_names)
+    doc = _document(res, names)
+    diag = doc["diagnostics"]
+    assert doc["credible_intervals"]["beta"] is None
+    assert all(ci is not None and ci[0] < ci[1] for ci in doc["credible_intervals"]["theta"])
+    assert diag["ess_bulk"]["beta"] == 0.0 and diag["r_hat"]["beta"] is None
+    assert all(v > 0 for v in diag["ess_bulk"]["theta"])
+    why = "the chain did not move in β (always 0.4): no posterior to summarise"
+    assert diag["unavailable"] == {"r_hat.beta": why, "credible_intervals.beta": why}
+    assert diag["warnings"][0].startswith("the chain did not move in β: every kept draw has β = 0.4, ")
+    assert "try a smaller --beta-step or --delta, or more --iterations" in diag["warnings"][0]
+
+
+def test_a_chain_frozen_everywhere_reports_no_posterior(tiny):
+    """The prior allows one lattice point: the chain never moves; no ESS, R-hat or interval is reported
+    as a posterior's (in the issue every ESS read the chain's length)."""
+    mdp, trajs = tiny
+    point = np.array([0.5, 0.25, 0.25])
+    res = extended_birl(mdp, trajs, n_iter=300, variant="simplex", rng=np.random.default_rng(8),
+                        log_prior=lambda t, b: 0.0 if np.allclose(t, point) and abs(b - 0.6) < 1e-9
+                        else -math.inf, **TINY_GRID)
+    assert res.acceptance_rate == 0.0
+    names = list(mdp.feature_names)
+    doc = _document(res, names)
+    diag = doc["diagnostics"]
+    assert doc["credible_intervals"] == {"beta": None, "theta": [None] * 3}
+    assert diag["ess_bulk"] == {"beta": 0.0, "theta": [0.0] * 3}
+    assert diag["r_hat"] == {"beta": None, "theta": [None] * 3}
+    assert len(diag["unavailable"]) == 8  # R-hat and interval of β and of each θ_k
+    stuck = [w for w in diag["warnings"] if "did not move" in w]
+    assert len(stuck) == 1 and stuck[0].startswith(f"the chain did not move in β, θ[{names[0]}], ")
+    assert not any(w.startswith("bulk ESS of ") for w in diag["warnings"])  # said once, by the stuck warning

@@ -43,7 +43,10 @@ def test_autocorrelated_chain_warns_on_ess():
     theta = np.repeat(beta[..., None], 2, axis=2)
     s = dg.chain_statistics(theta, beta)
     w = dg.sampling_warnings(s, chains=2, feature_names=NAMES, more="--samples")
-    assert any(m.startswith("bulk ESS of ") and "(< 100 per chain = 200)" in m for m in w), w
+    assert any(m.startswith("bulk ESS of β is 2.7, below 200 (100 per chain × 2 chains): ") for m in w), w
+    one = dg.sampling_warnings(dg.chain_statistics(theta[:1], beta[:1]), chains=1, feature_names=NAMES,
+                               more="--iterations")
+    assert any(m.startswith("bulk ESS of ") and ", below 100: " in m for m in one), one
 
 
 @pytest.mark.parametrize("C,D,missing", [(1, 50, {"r_hat"}), (2, 3, {"r_hat", "ess_bulk"}),
@@ -72,6 +75,70 @@ def test_one_chain_split_in_halves():
     short = dg.chain_statistics(theta[:5], beta[:5], halves=True)
     assert short["r_hat"] is None and "halves" in short["unavailable"]["r_hat"]
     assert short["ess_bulk"]["beta"] is not None
+
+
+# ----------------------------------------------------------------------------- chains that did not move
+def test_a_constant_chain_has_no_ess_r_hat_or_interval():
+    """ArviZ calls a constant series of n draws n effective draws (and its R-hat NaN): here it is ESS 0,
+    R-hat None with the reason, a warning that says so first, and no interval."""
+    rng = np.random.default_rng(5)
+    theta, beta = draws(rng, 1, 800)
+    theta, beta = theta[0], beta[0]
+    beta[:] = 0.81  # β never moved; θ did
+    s = dg.chain_statistics(theta, beta, halves=True, feature_names=NAMES)
+    assert s["stuck"] == {0: {0: 0.81}}
+    assert s["ess_bulk"]["beta"] == 0.0 and s["r_hat"]["beta"] is None
+    assert s["unavailable"] == {
+        "r_hat.beta": "the chain did not move in β (always 0.81): no posterior to summarise"}
+    assert 600 < min(s["ess_bulk"]["theta"])  # the components that moved keep their statistics (iid: ≈ 800)
+    intervals = dg.withhold_intervals({"beta": [0.81, 0.81], "theta": [[0, 1], [0, 1]]}, s["stuck"], 1, NAMES,
+                                      s["unavailable"])
+    assert intervals == {"beta": None, "theta": [[0, 1], [0, 1]]}
+    assert "did not move in β" in s["unavailable"]["credible_intervals.beta"]
+    w = dg.birl_warnings({**s, "acceptance_rate": 0.2}, NAMES, s["stuck"])
+    assert len(w) == 1, w  # one warning, not one per null statistic
+    assert w[0].startswith("the chain did not move in β: every kept draw has β = 0.81, so there is no "
+                           "posterior")
+    assert "ESS 0; R-hat and 90% interval null" in w[0] and "smaller --beta-step" in w[0]
+
+
+def test_a_chain_that_froze_everywhere():
+    """Every parameter constant (the issue's 10,000-iteration chain): every ESS 0, one warning naming all."""
+    theta, beta = np.tile([0.9, 0.1], (500, 1)), np.full(500, 2.5)
+    s = dg.chain_statistics(theta, beta, halves=True, feature_names=NAMES)
+    assert s["ess_bulk"] == {"beta": 0.0, "theta": [0.0, 0.0]}
+    assert s["r_hat"] == {"beta": None, "theta": [None, None]}
+    assert set(s["unavailable"]) == {"r_hat.beta", "r_hat.theta[0]", "r_hat.theta[1]"}
+    (w,) = dg.birl_warnings({**s, "acceptance_rate": 0.0}, NAMES, s["stuck"])[:1]
+    assert w.startswith("the chain did not move in β, θ[length], θ[road]: every kept draw has β = 2.5, "
+                        "θ[length] = 0.9, θ[road] = 0.1")
+
+
+def test_one_stuck_chain_among_several():
+    """A chain stuck at the median of three healthy ones: the pooled statistics are finite, but its
+    parameter gets ESS 0, no R-hat and a warning naming the chain."""
+    theta, beta = draws(np.random.default_rng(6), 4, 500)
+    beta[2] = np.median(beta[[0, 1, 3]])
+    s = dg.chain_statistics(theta, beta, feature_names=NAMES)
+    assert s["stuck"] == {0: {2: pytest.approx(beta[2, 0])}}
+    assert s["ess_bulk"]["beta"] == 0.0 and s["r_hat"]["beta"] is None
+    assert s["unavailable"]["r_hat.beta"].startswith("chain 2 (of 0–3) did not move in β (always ")
+    w = dg.nuts_warnings({**s, "divergences": 0, "chains": 4}, NAMES, s["stuck"])
+    assert len(w) == 1 and w[0].startswith("chain 2 (of 0–3) did not move in β: every draw after warm-up "
+                                           "has β = ") and "--warmup" in w[0], w
+
+
+def test_a_short_constant_chain_is_not_judged_stuck():
+    """Below 4 draws no statistic is computed: the run says 'convergence not checked', not 'stuck'."""
+    s = dg.chain_statistics(np.zeros((3, 2)), np.ones(3), halves=True, feature_names=NAMES)
+    assert s["stuck"] == {} and set(s["unavailable"]) == {"r_hat", "ess_bulk"}
+
+
+def test_a_nan_statistic_gets_a_reason():
+    s = {"r_hat": None, "ess_bulk": {"beta": float("nan"), "theta": [1.0, 2.0]}, "unavailable": {}}
+    s["ess_bulk"]["beta"] = None
+    dg._apply_stuck(s, {}, 2, NAMES)
+    assert s["unavailable"] == {"ess_bulk.beta": "not a finite number for this run"}
 
 
 def test_nuts_warnings():

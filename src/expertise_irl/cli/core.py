@@ -260,7 +260,9 @@ def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
     if doc.get("n_impossible"):
         _note(f"{doc['n_impossible']} of {n_hypotheses} hypotheses cannot produce the demonstrations")
     ci = doc.get("credible_intervals")
-    if ci:
+    if ci and ci["beta"] is None:
+        _say("90% credible interval of β: none (the chain did not move in β; see the warning)")
+    elif ci:
         _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
     for w in doc["diagnostics"].get("warnings", []):
         _warn(w)

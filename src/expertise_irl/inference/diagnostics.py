@@ -46,34 +46,120 @@ def _fmt_list(values) -> str:
 
 
 def _param_names(feature_names) -> list[str]:
-    return ["beta", *(f"theta[{n}]" for n in feature_names)]
+    return ["β", *(f"θ[{n}]" for n in feature_names)]
 
 
-def chain_statistics(theta: np.ndarray, beta: np.ndarray, *, halves: bool = False) -> dict[str, Any]:
+def _path(i: int) -> str:
+    """Where parameter ``i`` (0 = β, then θ's components) sits in a ``{"beta", "theta": [K]}`` entry."""
+    return "beta" if i == 0 else f"theta[{i - 1}]"
+
+
+def _count(x: float) -> str:
+    return f"{x:.0f}" if x >= 10 else f"{x:.1f}"
+
+
+def stuck_parameters(theta: np.ndarray, beta: np.ndarray) -> dict[int, dict[int, float]]:
+    """The parameters that some chain never moved, of draws ``theta [C, D, K]``, ``beta [C, D]``.
+
+    Returns ``{i: {chain: value}}`` with ``i`` = 0 for β and ``k + 1`` for θ_k: in each listed
+    chain every draw of that parameter is the same ``value``. Such a chain says nothing about the
+    posterior's spread; ArviZ reports the ESS of a constant series as its length and its R-hat as
+    NaN. Chains shorter than the statistics' minimum (:data:`_MIN_DRAWS`) are not judged.
+    """
+    C, D = beta.shape
+    if D < _MIN_DRAWS:
+        return {}
+    series = [beta, *(theta[..., k] for k in range(theta.shape[-1]))]
+    out: dict[int, dict[int, float]] = {}
+    for i, x in enumerate(series):
+        per_chain = {c: float(x[c, 0]) for c in range(C) if np.all(x[c] == x[c, 0])}
+        if per_chain:
+            out[i] = per_chain
+    return out
+
+
+def _who(chains, n_chains: int) -> str:
+    if n_chains == 1:
+        return "the chain"
+    listed = ", ".join(str(c) for c in chains)
+    return f"chain{'s' if len(chains) > 1 else ''} {listed} (of 0–{n_chains - 1})"
+
+
+def stuck_reason(i: int, per_chain: dict[int, float], n_chains: int, feature_names) -> str:
+    """Why the statistics and the interval of stuck parameter ``i`` are withheld, in one line."""
+    name = _param_names(feature_names)[i]
+    values = sorted(set(per_chain.values()))
+    at = f"always {values[0]:.4g}" if len(values) == 1 else "each at one value"
+    return f"{_who(sorted(per_chain), n_chains)} did not move in {name} ({at}): no posterior to summarise"
+
+
+def _apply_stuck(out: dict[str, Any], stuck, n_chains: int, feature_names) -> None:
+    """Bulk ESS 0 and R-hat None (with the reason) for stuck parameters; a reason for every other None."""
+    for stat in ("r_hat", "ess_bulk"):
+        values = out[stat]
+        if values is None:
+            continue
+        for i in range(1 + len(values["theta"])):
+            key = f"{stat}.{_path(i)}"
+            if i in stuck:
+                new = 0.0 if stat == "ess_bulk" else None
+                if new is None:
+                    out["unavailable"][key] = stuck_reason(i, stuck[i], n_chains, feature_names)
+            else:
+                new = values["beta"] if i == 0 else values["theta"][i - 1]
+                if new is None:
+                    out["unavailable"][key] = "not a finite number for this run"
+            if i == 0:
+                values["beta"] = new
+            else:
+                values["theta"][i - 1] = new
+
+
+def chain_statistics(theta: np.ndarray, beta: np.ndarray, *, halves: bool = False,
+                     feature_names=None) -> dict[str, Any]:
     """Split R-hat and bulk ESS of draws ``theta [C, D, K]``, ``beta [C, D]``.
 
     Returns ``{"r_hat": {"beta": x, "theta": [K]} | None, "ess_bulk": ... | None,
-    "unavailable": {name: reason}}``. R-hat needs two chains of at least 4 draws, ESS at
-    least 4 draws per chain; otherwise the statistic is ``None`` and the reason is given.
+    "unavailable": {name: reason}, "stuck": {i: {chain: value}}}``. R-hat needs two chains of at
+    least 4 draws, ESS at least 4 draws per chain; otherwise the statistic is ``None`` and the
+    reason is given. A parameter that some chain never moved (:func:`stuck_parameters`, listed
+    in ``stuck``) has bulk ESS 0 and R-hat ``None`` (``unavailable["r_hat.beta"]``,
+    ``["r_hat.theta[k]"]`` say why), whatever the other chains did; any other value that comes out
+    NaN is ``None`` with a reason too. ``feature_names`` name θ's components in the reasons.
     ``halves``: the input is one chain ``theta [D, K]``, ``beta [D]``; R-hat compares its two
     halves and ESS is that of the whole chain.
     """
+    if feature_names is None:
+        feature_names = [str(k) for k in range(theta.shape[-1])]
+    if halves:
+        theta, beta = theta[None], beta[None]
+        out = _halves(theta[0], beta[0])
+    else:
+        out = _statistics(theta, beta)
+    out["stuck"] = stuck_parameters(theta, beta)
+    _apply_stuck(out, out["stuck"], beta.shape[0], feature_names)
+    return out
+
+
+def _halves(theta: np.ndarray, beta: np.ndarray) -> dict[str, Any]:
+    n = len(beta) // 2
+    out = _statistics(theta[:2 * n].reshape(2, n, -1), beta[:2 * n].reshape(2, n))
+    if out["r_hat"] is None:
+        out["unavailable"]["r_hat"] = (f"R-hat of one chain compares its halves, which need at least "
+                                       f"{_MIN_DRAWS} draws each; the chain has {len(beta)}")
+    out["unavailable"].pop("ess_bulk", None)
+    if len(beta) >= _MIN_DRAWS:
+        out["ess_bulk"] = _statistics(theta[None], beta[None])["ess_bulk"]
+    else:
+        out["ess_bulk"] = None
+        out["unavailable"]["ess_bulk"] = (f"ESS needs at least {_MIN_DRAWS} draws; "
+                                          f"the chain has {len(beta)}")
+    return out
+
+
+def _statistics(theta: np.ndarray, beta: np.ndarray) -> dict[str, Any]:
     import arviz as az
 
-    if halves:
-        n = len(beta) // 2
-        out = chain_statistics(theta[:2 * n].reshape(2, n, -1), beta[:2 * n].reshape(2, n))
-        if out["r_hat"] is None:
-            out["unavailable"]["r_hat"] = (f"R-hat of one chain compares its halves, which need at least "
-                                           f"{_MIN_DRAWS} draws each; the chain has {len(beta)}")
-        out["unavailable"].pop("ess_bulk", None)
-        if len(beta) >= _MIN_DRAWS:
-            out["ess_bulk"] = chain_statistics(theta[None], beta[None])["ess_bulk"]
-        else:
-            out["ess_bulk"] = None
-            out["unavailable"]["ess_bulk"] = (f"ESS needs at least {_MIN_DRAWS} draws; "
-                                              f"the chain has {len(beta)}")
-        return out
     C, D = beta.shape
     out: dict[str, Any] = {"r_hat": None, "ess_bulk": None, "unavailable": {}}
 
@@ -98,37 +184,81 @@ def chain_statistics(theta: np.ndarray, beta: np.ndarray, *, halves: bool = Fals
     return out
 
 
-def _worst(stat: dict | None, feature_names, pick) -> tuple[str, float] | None:
+def withhold_intervals(intervals: dict[str, Any], stuck, n_chains: int, feature_names,
+                       unavailable: dict[str, str]) -> dict[str, Any]:
+    """``intervals`` (``{"beta": [lo, hi], "theta": [[lo, hi], ...]}``) with ``None`` for each stuck
+    parameter, the reason in ``unavailable["credible_intervals.beta"]`` (or ``.theta[k]``): the
+    quantiles of a value repeated by a chain that never moved are not a posterior's."""
+    out = {"beta": intervals["beta"], "theta": list(intervals["theta"])}
+    for i, per_chain in stuck.items():
+        if i == 0:
+            out["beta"] = None
+        else:
+            out["theta"][i - 1] = None
+        unavailable[f"credible_intervals.{_path(i)}"] = stuck_reason(i, per_chain, n_chains, feature_names)
+    return out
+
+
+def _worst(stat: dict | None, feature_names, pick, skip=()) -> tuple[str, float] | None:
     if stat is None:
         return None
-    pairs = [(n, v) for n, v in zip(_param_names(feature_names), [stat["beta"], *stat["theta"]],
-                                    strict=True) if v is not None]
+    values = [stat["beta"], *stat["theta"]]
+    pairs = [(n, v) for i, (n, v) in enumerate(zip(_param_names(feature_names), values, strict=True))
+             if v is not None and i not in skip]
     return pick(pairs, key=lambda p: p[1]) if pairs else None
 
 
+def stuck_warnings(stuck, *, chains: int, feature_names, draws: str, remedy: str) -> list[str]:
+    """One warning per set of chains that did not move in some parameters: which, at what value,
+    what is withheld and ``remedy`` (what to run instead). ``draws`` names the draws judged."""
+    by_chains: dict[tuple[int, ...], list[int]] = {}
+    for i, per_chain in sorted(stuck.items()):
+        by_chains.setdefault(tuple(sorted(per_chain)), []).append(i)
+    names = _param_names(feature_names)
+    out = []
+    for which, params in by_chains.items():
+        listed = ", ".join(names[i] for i in params)
+        if len(which) == 1:
+            values = ", ".join(f"{names[i]} = {stuck[i][which[0]]:.4g}" for i in params)
+            where = f"every {draws} has {values}"
+        else:
+            where = f"each repeats one value in every {draws}"
+        out.append(f"{_who(which, chains)} did not move in {listed}: {where}, so there is no posterior to "
+                   "summarise there (ESS 0; R-hat and 90% interval null; the estimate is that one value); "
+                   f"{remedy}")
+    return out
+
+
 def sampling_warnings(stats: dict[str, Any], *, chains: int, feature_names, more: str,
-                      unmixed: str = "the chains have not mixed") -> list[str]:
+                      unmixed: str = "the chains have not mixed", stuck=None) -> list[str]:
     """Warnings for statistics that could not be computed, R-hat above :data:`R_HAT_MAX` and bulk
     ESS below :data:`ESS_PER_CHAIN_MIN` per chain; ``more`` names the options that buy more
-    draws (e.g. ``--samples``)."""
+    draws (e.g. ``--samples``). Parameters in ``stuck`` (:func:`stuck_parameters`) have their own
+    warning (:func:`stuck_warnings`) and are left out of these."""
+    stuck = stuck or {}
+    explained = {f"{stat}.{_path(i)}" for i in stuck for stat in ("r_hat", "ess_bulk", "credible_intervals")}
     out = [f"convergence not checked: {why} (run longer: {more})"
-           for why in stats.get("unavailable", {}).values()]
-    worst = _worst(stats.get("r_hat"), feature_names, max)
+           for key, why in stats.get("unavailable", {}).items() if key not in explained]
+    worst = _worst(stats.get("r_hat"), feature_names, max, stuck)
     if worst is not None and worst[1] > R_HAT_MAX:
         out.append(f"R-hat of {worst[0]} is {worst[1]:.3f} (> {R_HAT_MAX}): {unmixed}; "
                    f"the estimates and intervals are not trustworthy (run longer: {more})")
-    low = _worst(stats.get("ess_bulk"), feature_names, min)
+    low = _worst(stats.get("ess_bulk"), feature_names, min, stuck)
     need = ESS_PER_CHAIN_MIN * chains
     if low is not None and low[1] < need:
-        out.append(f"bulk ESS of {low[0]} is {low[1]:.1f} (< {ESS_PER_CHAIN_MIN} per chain = {need}): "
+        why = f" ({ESS_PER_CHAIN_MIN} per chain × {chains} chains)" if chains > 1 else ""
+        out.append(f"bulk ESS of {low[0]} is {_count(low[1])}, below {need}{why}: "
                    f"posterior means and intervals are noisy (run longer: {more})")
     return out
 
 
-def nuts_warnings(diag: dict[str, Any], feature_names) -> list[str]:
-    """Warnings of a NUTS run: R-hat, ESS, divergences, and R-hat that one chain cannot give."""
+def nuts_warnings(diag: dict[str, Any], feature_names, stuck=None) -> list[str]:
+    """Warnings of a NUTS run: chains that did not move (``stuck``, :func:`stuck_parameters`), R-hat,
+    ESS, divergences, and R-hat that one chain cannot give."""
     more = "--chains 2 or more, --samples" if diag["chains"] < 2 else "--warmup, --samples"
-    out = sampling_warnings(diag, chains=diag["chains"], feature_names=feature_names, more=more)
+    out = stuck_warnings(stuck or {}, chains=diag["chains"], feature_names=feature_names,
+                         draws="draw after warm-up", remedy="run a longer --warmup or another --seed")
+    out += sampling_warnings(diag, chains=diag["chains"], feature_names=feature_names, more=more, stuck=stuck)
     if diag["divergences"]:
         n_div = diag["divergences"]
         plural = "s" if n_div != 1 else ""
@@ -137,15 +267,17 @@ def nuts_warnings(diag: dict[str, Any], feature_names) -> list[str]:
     return out
 
 
-def birl_warnings(diag: dict[str, Any], feature_names) -> list[str]:
-    """Warnings of an Algorithm 1 chain: acceptance rate, split R-hat of its halves, ESS."""
-    out = []
+def birl_warnings(diag: dict[str, Any], feature_names, stuck=None) -> list[str]:
+    """Warnings of an Algorithm 1 chain: parameters it did not move (``stuck``, :func:`stuck_parameters`),
+    acceptance rate, split R-hat of its halves, ESS."""
+    out = stuck_warnings(stuck or {}, chains=1, feature_names=feature_names, draws="kept draw",
+                         remedy="try a smaller --beta-step or --delta, or more --iterations")
     rate = diag["acceptance_rate"]
     if rate < ACCEPTANCE_MIN:
         out.append(f"acceptance rate {rate:.3f} (< {ACCEPTANCE_MIN}): the walk is stuck; "
                    "try a smaller --delta or --beta-step")
     return out + sampling_warnings(diag, chains=1, feature_names=feature_names, more="--iterations",
-                                   unmixed="the two halves of the chain disagree")
+                                   unmixed="the two halves of the chain disagree", stuck=stuck)
 
 
 def map_warnings(diag: dict[str, Any], beta: float, beta_range: tuple[float, float]) -> list[str]:

@@ -219,24 +219,27 @@ def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[s
 
 
 def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
-    from .diagnostics import birl_warnings, chain_statistics
+    from .diagnostics import birl_warnings, chain_statistics, withhold_intervals
     from .gradient import credible_intervals
 
     theta, beta = r.kept_theta, r.kept_beta
-    stats = chain_statistics(theta, beta, halves=True)  # one chain: R-hat compares its halves
+    # one chain: R-hat compares its halves
+    stats = chain_statistics(theta, beta, halves=True, feature_names=names)
+    intervals = withhold_intervals(credible_intervals(theta, beta, CREDIBLE), stats["stuck"], 1, names,
+                                   stats["unavailable"])
     diag = {"acceptance_rate": r.acceptance_rate, "out_of_bounds": r.n_out_of_bounds,
             "burn_in": r.n_burn, "solves": r.n_solves, "sweeps": r.n_sweeps,
             "variant": r.variant, "moves": r.moves, "r_hat": stats["r_hat"],
             "r_hat_method": "split halves of the kept chain", "ess_bulk": stats["ess_bulk"],
             "unavailable": stats["unavailable"]}
-    diag["warnings"] = birl_warnings(diag, names)
+    diag["warnings"] = birl_warnings(diag, names, stats["stuck"])
     return {
         "theta_hat": r.mean_theta.tolist(), "beta_hat": float(r.mean_beta),
         "theta_hat_normalized": r.mean_theta_normalized.tolist(),
         "beta_hat_normalized": float(r.mean_beta_normalized),
         "map": {"theta": r.best_theta.tolist(), "beta": float(r.best_beta),
                 "log_posterior": float(r.best_log_posterior)},
-        "credible_intervals": credible_intervals(theta, beta, CREDIBLE),
+        "credible_intervals": intervals,
         "diagnostics": diag,
         "draws": (np.zeros(len(beta), dtype=int), theta, beta),
     }
@@ -256,20 +259,22 @@ def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
 
 
 def _describe_nuts(r, opts: NUTSOptions, names) -> dict[str, Any]:
-    from .diagnostics import nuts_warnings
+    from .diagnostics import nuts_warnings, withhold_intervals
 
     C, D, K = r.theta.shape
     theta, beta = r.theta.reshape(-1, K), r.beta.reshape(-1)
     best = int(np.argmax(r.log_density.reshape(-1)))
+    unavailable = dict(r.unavailable)
+    intervals = withhold_intervals(r.credible_intervals(CREDIBLE), r.stuck, C, names, unavailable)
     diag = {"r_hat": r.r_hat, "ess_bulk": r.ess, "divergences": r.divergences,
             "chains": C, "draws_per_chain": D, "mean_tree_size": r.mean_tree_size,
-            "mean_accept_prob": r.mean_accept_prob, "unavailable": dict(r.unavailable)}
-    diag["warnings"] = nuts_warnings(diag, names)
+            "mean_accept_prob": r.mean_accept_prob, "unavailable": unavailable}
+    diag["warnings"] = nuts_warnings(diag, names, r.stuck)
     return {
         "theta_hat": r.mean_theta.tolist(), "beta_hat": r.mean_beta,
         "map": {"theta": theta[best].tolist(), "beta": float(beta[best]),
                 "log_posterior": float(r.log_density.reshape(-1)[best])},
-        "credible_intervals": r.credible_intervals(CREDIBLE),
+        "credible_intervals": intervals,
         "diagnostics": diag,
         "draws": (np.repeat(np.arange(C), D), theta, beta),
     }

@@ -30,7 +30,7 @@ summarises the draws.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import jax
 import numpy as np
@@ -64,6 +64,9 @@ class NUTSResult:
         unavailable: ``{statistic: reason}`` for each statistic that could not be computed.
         mean_tree_size: leapfrog steps per draw after warm-up, averaged over chains and draws.
         mean_accept_prob: mean acceptance statistic after warm-up.
+        stuck: ``{i: {chain: value}}``, the parameters (0 = β, ``k + 1`` = θ_k) that a chain never
+            moved, at the value it repeated (:func:`~.diagnostics.stuck_parameters`): their ESS is
+            0, their R-hat ``None``, and the result document withholds their intervals.
     """
 
     theta: np.ndarray
@@ -76,6 +79,7 @@ class NUTSResult:
     unavailable: dict
     mean_tree_size: float = float("nan")
     mean_accept_prob: float = float("nan")
+    stuck: dict = field(default_factory=dict)
 
     @property
     def mean_theta(self) -> np.ndarray:
@@ -171,9 +175,9 @@ def _summarise(th, be, div, steps, acc, post, counts, feature_names) -> NUTSResu
         sample_stats={"diverging": div, "n_steps": steps, "acceptance_rate": acc, "lp": log_density},
         coords={"feature": list(feature_names)}, dims={"theta": ["feature"]},
     )
-    stats = chain_statistics(th, be)
+    stats = chain_statistics(th, be, feature_names=feature_names)
     return NUTSResult(
         theta=th, beta=be, idata=idata, r_hat=stats["r_hat"], ess=stats["ess_bulk"],
         divergences=int(div.sum()), log_density=log_density, unavailable=stats["unavailable"],
-        mean_tree_size=float(steps.mean()), mean_accept_prob=float(acc.mean()),
+        mean_tree_size=float(steps.mean()), mean_accept_prob=float(acc.mean()), stuck=stats["stuck"],
     )

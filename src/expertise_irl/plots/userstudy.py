@@ -70,10 +70,13 @@ def participant_figure(participant: str, panels: Sequence[dict[str, Any]], doc: 
             draw_discrete_component(bottom[i + 1], v, p, name, mean=doc["theta_hat"][i])
     elif isinstance(doc.get("samples"), dict):
         s = doc["samples"]
-        draw_sampled(bottom[0], s["beta"], "β", mean=doc["beta_hat"])
+        ci = doc.get("credible_intervals") or {}  # null where a chain did not move: no band there
+        draw_sampled(bottom[0], s["beta"], "β", mean=doc["beta_hat"],
+                     withheld="beta" in ci and ci["beta"] is None)
         theta = np.asarray(s["theta"], dtype=float)
         for i, name in enumerate(names):
-            draw_sampled(bottom[i + 1], theta[:, i], f"θ {name}", mean=doc["theta_hat"][i])
+            draw_sampled(bottom[i + 1], theta[:, i], f"θ {name}", mean=doc["theta_hat"][i],
+                         withheld=(ci.get("theta") or [0] * len(names))[i] is None)
     else:
         draw_point(bottom[0], doc["beta_hat"], "β", lo=1e-3, hi=1e2, log=True)
         for i, name in enumerate(names):

@@ -271,7 +271,9 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     def nuts_one(n: int):
         r, t = _timed(lambda: nuts_fit(trajs.first(n), cfg.nuts_warmup, cfg.nuts_samples,
                                        cfg.nuts_chains, seeds["nuts"] + n))
-        rhat = np.nan if r.r_hat is None else float(max(r.r_hat["beta"], np.max(r.r_hat["theta"])))
+        # None (not computable, or a chain that did not move) counts as NaN, not as converged
+        rhat = np.nan if r.r_hat is None else float(np.max(np.array([r.r_hat["beta"], *r.r_hat["theta"]],
+                                                                     dtype=float)))
         return r.mean_theta, r.mean_beta, t, {"divergences": float(r.divergences), "max_rhat": rhat}
 
     methods = {
