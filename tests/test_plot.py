@@ -405,3 +405,23 @@ def test_a_floor_plan_is_drawn_as_a_floor_plan():
     assert len(arrows[0].get_offsets()) == 5  # the five road cells (>>>v, v)
     assert any(h.get_label() == "restricted" for h in handles)
     plt.close(fig)
+
+
+def test_no_band_where_the_chain_did_not_move(results, tmp_path):
+    """A result that withholds an interval (null: the chain did not move there) gets no shaded band,
+    though the draws would give one, and neither does a parameter whose draws are all one value
+    (a result written before intervals were withheld: its [v, v] is no posterior's)."""
+    doc = load(results["birl"])
+    doc["credible_intervals"]["beta"] = None
+    doc["credible_intervals"]["theta"][0] = None
+    frozen = np.asarray(doc["samples"]["theta"], dtype=float)
+    frozen[:, 1] = 0.25
+    doc["samples"]["theta"] = frozen.tolist()
+    doc["credible_intervals"]["theta"][1] = [0.25, 0.25]
+    fig = rp.result_figure(doc, source=results["birl"])
+    for name in (r"$\beta$", rf"$\theta$ {FEATURES[0]}", rf"$\theta$ {FEATURES[1]}"):
+        (ax,) = find_axes(fig, lambda a, n=name: a.get_title().startswith(f"{n}: "))
+        assert ax.get_title() == f"{name}: no 90% interval (stuck chain)"
+        assert by_gid(ax, "interval", "patches") == [] and len(by_gid(ax, "hist", "patches")) > 0
+    (ax,) = find_axes(fig, lambda a: a.get_title().startswith(rf"$\theta$ {FEATURES[2]}: 90% ["))
+    assert len(by_gid(ax, "interval", "patches")) == 1  # the others keep theirs

@@ -77,18 +77,25 @@ def draw_discrete_component(ax: Axes, values, probs, name: str, *, mean: float |
 
 
 def draw_sampled(ax: Axes, draws, label: str, *, interval=None, mean: float | None = None,
-                 point: float | None = None, true: float | None = None, log: bool = False) -> Axes:
+                 point: float | None = None, true: float | None = None, log: bool = False,
+                 withheld: bool = False) -> Axes:
     """Histogram (density) of ``draws`` with the 90% interval shaded (gid ``"interval"``).
 
     ``interval`` defaults to the 5%/95% quantiles of the draws. ``mean`` is a dashed line,
-    ``point`` (the MAP draw) a marker on the axis, ``true`` a red line.
+    ``point`` (the MAP draw) a marker on the axis, ``true`` a red line. No interval is drawn when
+    ``withheld`` (the result has none: a chain did not move) or when every draw is the same.
     """
     x = np.asarray(draws, dtype=float)
-    if interval is None:
-        interval = np.quantile(x, [(1 - CREDIBLE) / 2, (1 + CREDIBLE) / 2]).tolist()
-    lo, hi = float(interval[0]), float(interval[1])
-    ax.axvspan(lo, hi, color=BAND_COLOR, alpha=0.55, lw=0, gid="interval", zorder=0)
     span = float(x.max() - x.min())
+    shade = not withheld and span > 0
+    if shade and interval is None:
+        interval = np.quantile(x, [(1 - CREDIBLE) / 2, (1 + CREDIBLE) / 2]).tolist()
+    if shade:
+        lo, hi = float(interval[0]), float(interval[1])
+        ax.axvspan(lo, hi, color=BAND_COLOR, alpha=0.55, lw=0, gid="interval", zorder=0)
+        ax.set_title(f"{label}: 90% [{lo:.3g}, {hi:.3g}]", fontsize=8.5)
+    else:
+        ax.set_title(f"{label}: no 90% interval (stuck chain)", fontsize=8.5)
     bins: Any = min(30, max(5, int(np.sqrt(x.size)) + 1))
     if span == 0:  # every draw the same: a narrow spike on a readable axis
         w = max(abs(float(x[0])) * 0.01, 1e-3)
@@ -103,7 +110,6 @@ def draw_sampled(ax: Axes, draws, label: str, *, interval=None, mean: float | No
                 gid="map-point", zorder=4)
     if true is not None:
         ax.axvline(true, color=POINT_COLOR, lw=1.3, gid="true", zorder=3)
-    ax.set_title(f"{label}: 90% [{lo:.3g}, {hi:.3g}]", fontsize=8.5)
     ax.set_ylabel("density", fontsize=7.5)
     ax.set_yticks([])
     maps.tidy(ax)
@@ -428,7 +434,8 @@ def _draw_samples(doc: dict[str, Any], source: Path, ax_beta: Axes, ax_th, beta_
     mp = doc.get("map") if isinstance(doc.get("map"), dict) else {}
     b_int = ci.get("beta") if _valid_interval(ci.get("beta")) else None
     draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=doc["beta_hat"],
-                 point=mp.get("beta") if is_number(mp.get("beta")) else None, true=beta_true)
+                 point=mp.get("beta") if is_number(mp.get("beta")) else None, true=beta_true,
+                 withheld="beta" in ci and ci["beta"] is None)
     ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
     t_ints = ci.get("theta") if isinstance(ci.get("theta"), list) and len(ci.get("theta")) == K else None
     mp_t = mp.get("theta") if isinstance(mp.get("theta"), list) and len(mp.get("theta")) == K else None
@@ -436,7 +443,8 @@ def _draw_samples(doc: dict[str, Any], source: Path, ax_beta: Axes, ax_th, beta_
         draw_sampled(ax, theta[:, i], rf"$\theta$ {names[i]}",
                      interval=t_ints[i] if t_ints and _valid_interval(t_ints[i]) else None,
                      mean=doc["theta_hat"][i], point=None if mp_t is None else mp_t[i],
-                     true=None if theta_true is None else theta_true[i])
+                     true=None if theta_true is None else theta_true[i],
+                     withheld=t_ints is not None and t_ints[i] is None)
     n_chains = len(np.unique(chain))
     few = " (too few to show a shape)" if len(beta) < 50 else ""
     return (f"{len(beta)} draw{'s' if len(beta) != 1 else ''}{few} from {n_chains} "
