@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from cli_helpers import assert_input_error as one_line_error
@@ -72,6 +73,25 @@ def test_list_shows_every_scale_with_counts():
     for scale in ("smoke", "small", "paper"):
         assert scale in result.output
     assert "conditions" in result.output and "100 / 1200" in result.output
+
+
+def test_readme_times_of_the_paper_runs_are_the_list_estimates():
+    """Each ``≈`` time of README's "Reproducing the paper" commands is within 15% of what
+    ``experiment list`` estimates for that study, scale and workers on the README's 2-core machine."""
+    import re
+
+    from expertise_irl.cli.experiment import estimate_s
+    from expertise_irl.experiments.studies import studies
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    pattern = r"experiment run (\w+) .*--scale (\w+)(?: --workers (\d+))?\s+#.*≈ ([\d.]+) (s|min)"
+    found = re.findall(pattern, readme)
+    assert len(found) >= 4, found
+    for name, scale, workers, value, unit in found:
+        st = studies()[name]
+        est = estimate_s(st.tasks(st.scales[scale]), int(workers or 2))
+        quoted = float(value) * (60 if unit == "min" else 1)
+        assert abs(quoted - est) <= 0.15 * est, (name, scale, quoted, est)
 
 
 @pytest.mark.parametrize(

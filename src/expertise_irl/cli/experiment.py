@@ -113,6 +113,12 @@ def status_cmd(
         _say(f"failed: {key}: {message}")
 
 
+def estimate_s(tasks, workers: int) -> float:
+    """Estimated seconds of a first run of ``tasks`` on ``workers`` local workers (their cost models'
+    seconds spread evenly over the workers, plus starting them)."""
+    return STARTUP_S + sum(t.estimate_s for t in tasks) / min(workers, len(tasks))
+
+
 @experiment_app.command("list")
 @handles_errors
 def list_cmd(
@@ -122,7 +128,8 @@ def list_cmd(
     """Studies and their scales: tasks, instances, rows, solves, and an estimated time.
 
     The estimate comes from each study's cost model (timed on a 2-core laptop) spread over the
-    local workers; it is not measured here.
+    local workers; it is not measured here. It is for a first run (JAX's compilation cache
+    empty); a later run on the same maps skips the compilation (docs/experiments.md).
     """
     from rich.table import Table
 
@@ -130,7 +137,8 @@ def list_cmd(
     from ..experiments.studies import studies
 
     n = workers or cores()
-    table = Table(title=f"studies (estimated time with {n} local worker(s), from timings on a 2-core laptop)")
+    table = Table(title=f"studies (estimated time of a first run, compilation cache empty, with {n} local "
+                        "worker(s), from timings on a 2-core laptop)")
     for name in ("study", "scale", "tasks", "instances", "rows", "set solves (grouped / ungrouped)",
                  "estimated time"):
         table.add_column(name, justify="left" if name in ("study", "scale") else "right",
@@ -139,11 +147,10 @@ def list_cmd(
         for scale, cfg in st.scales.items():
             c = st.counts(cfg)
             tasks = st.tasks(cfg)
-            est = STARTUP_S + sum(t.estimate_s for t in tasks) / min(n, len(tasks))
             table.add_row(st.name, scale, str(len(tasks)), str(c.get("instances", "")),
                           str(c.get("rows", "")),
                           f"{c.get('set_solves_grouped', '')} / {c.get('set_solves_ungrouped', '')}",
-                          _duration(est))
+                          _duration(estimate_s(tasks, n)))
         _say(f"{st.name}: {st.description}")
     from ._app import out as console
 

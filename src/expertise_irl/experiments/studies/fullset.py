@@ -116,7 +116,8 @@ def tasks(cfg: FullsetConfig) -> list[TaskSpec]:
 def estimate_s(cfg: FullsetConfig, e: int) -> float:
     """Rough seconds of one map's task for one worker of a 2-core laptop: the full set's solve
     (measured: 0.05 s per state for 18,186 hypotheses) plus each person's episodes scored
-    under both sets and their regret solves (measured: about 0.4 s for 20 episodes on 287 states)."""
+    under both sets and their regret solves (fitted to the timings of docs/reproduction/fullset-*,
+    two workers side by side: about 0.6 s per person plus 2.5e-5 s per episode and state)."""
     from ...hypotheses import BETA_PRESETS
 
     n_hyp = len(cond.preset_grid(cfg.thetas, len(FEATURES))) * len(BETA_PRESETS[cfg.betas])
@@ -134,7 +135,7 @@ def estimate_s(cfg: FullsetConfig, e: int) -> float:
             episodes = [scfg.n_episodes(g, t) for g in scfg.groups for t in truths] * scfg.runs * len(scfg.ks)
         else:
             episodes = [scfg.episodes] * scfg.instances
-        total += sum(0.15 + n * states * 2.5e-5 for n in episodes)
+        total += sum(0.6 + n * states * 2.5e-5 for n in episodes)
     return total
 
 
