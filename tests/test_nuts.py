@@ -160,3 +160,33 @@ def test_repeated_runs_keep_no_compiled_code(corridor, corridor_demos):
     for s in range(2, 6):
         run(s)
     assert maps() - before < 100  # 4 runs: leaking ~400 each would add ~1,600
+
+
+def test_a_chain_stuck_at_one_value_is_no_posterior(corridor, corridor_demos, monkeypatch):
+    """Chain 1 made to repeat one draw (as a chain whose every proposal is rejected does): every
+    parameter gets ESS 0 and R-hat null with the reason, the document withholds the 90% intervals,
+    and the first warning names the chain."""
+    from expertise_irl.inference import nuts as nuts_module
+    from expertise_irl.inference.methods import NUTSOptions, document
+
+    real = nuts_module.run_chains
+
+    def second_chain_stuck(*args, **kwargs):
+        chains = real(*args, **kwargs)
+        th, be, *rest = chains[1]
+        chains[1] = (np.repeat(th[-1:], len(th), axis=0), np.repeat(be[-1:], len(be)), *rest)
+        return chains
+
+    monkeypatch.setattr(nuts_module, "run_chains", second_chain_stuck)
+    run = get_method("nuts").run(corridor, corridor_demos, NUTSOptions(chains=2, warmup=30, samples=30), 0)
+    assert run.result.stuck.keys() == set(range(1 + corridor.n_features))
+    doc = document(run, feature_names=corridor.feature_names, settings={}, data={})
+    diag = doc["diagnostics"]
+    assert doc["credible_intervals"] == {"beta": None, "theta": [None] * corridor.n_features}
+    assert diag["ess_bulk"] == {"beta": 0.0, "theta": [0.0] * corridor.n_features}
+    assert diag["r_hat"] == {"beta": None, "theta": [None] * corridor.n_features}
+    assert diag["unavailable"]["r_hat.beta"].startswith("chain 1 (of 0–1) did not move in β (always ")
+    why = diag["unavailable"]["credible_intervals.theta[0]"]
+    assert why.startswith("chain 1 (of 0–1) did not move in θ[")
+    assert diag["warnings"][0].startswith("chain 1 (of 0–1) did not move in β, θ[")
+    assert "every draw after warm-up has β = " in diag["warnings"][0] and "--warmup" in diag["warnings"][0]

@@ -7,6 +7,11 @@ is then ``None``, written as JSON ``null``).
 
 Thresholds (module constants, documented in the README):
 
+- **A chain that did not move** in a parameter (every draw of that chain the same value): no
+  posterior to summarise there, whatever the other chains did. ArviZ would call a constant series
+  of n draws n effective draws and give it a NaN R-hat; here its bulk ESS is 0, its R-hat ``None``
+  and its 90% interval withheld (:func:`withhold_intervals`), each with the reason, and one warning
+  (:func:`stuck_warnings`) names the chain, the parameters and their values.
 - **R-hat** (rank-normalised split R̂, Vehtari et al. 2021): above :data:`R_HAT_MAX` = 1.01 the
   chains (or, for Algorithm 1's single chain, its two halves) have not mixed.
 - **Bulk ESS**: below :data:`ESS_PER_CHAIN_MIN` = 100 per chain the posterior means and

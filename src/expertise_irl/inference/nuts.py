@@ -57,8 +57,8 @@ class NUTSResult:
         idata: the ArviZ ``InferenceData`` (posterior, sample_stats).
         r_hat: ``{"beta": float, "theta": [K]}`` split-R̂ (rank-normalised), or None when the
             run is too short to compute it (fewer than 2 chains or 4 draws; see ``unavailable``).
-        ess: ``{"beta": float, "theta": [K]}`` bulk effective sample size, or None (fewer than
-            4 draws per chain).
+        ess: ``{"beta": float, "theta": [K]}`` bulk effective sample size (0 where a chain did not
+            move, see ``stuck``), or None (fewer than 4 draws per chain).
         divergences: number of divergent transitions after warm-up.
         log_density: ``[chains, draws]`` unnormalised log-posterior of each draw (θ, β space).
         unavailable: ``{statistic: reason}`` for each statistic that could not be computed.
