@@ -305,6 +305,58 @@ def test_plot_on_an_mdp_archive(results, demos, work, tmp_path):
                    str(bare), "state_xy")
 
 
+def map_panel(fig):
+    """The drawn figure's map axes (equal aspect); its own, its legend's and its panel's extents in pixels."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    [ax] = find_axes(fig, lambda a: a.get_aspect() == 1.0)
+    return (ax, ax.get_window_extent(renderer), ax.get_legend().get_window_extent(renderer),
+            ax.get_figure(root=False).bbox)
+
+
+@pytest.fixture(scope="module")
+def crossroads_task(work):
+    """The README's task: crossroads as an MDP archive, and the person of its simulate command
+    (long episodes, so the legend's labels are long: "… (first 60 drawn)")."""
+    from expertise_irl.demos.simulation import simulate
+    from expertise_irl.mdp import TabularMDP
+
+    npz = work / "crossroads.npz"
+    ok(invoke("export-mdp", "crossroads", "--out", npz))
+    mdp = TabularMDP.load(npz)
+    return mdp, simulate(mdp, np.array([0.5, 0.5, 0, 0, 0]), 0.5, 20, np.random.default_rng(1))
+
+
+@pytest.mark.parametrize("world", ["corridor", "crossroads"])
+@pytest.mark.parametrize("source", ["mdp", "map"])
+@pytest.mark.parametrize("method", METHODS)
+def test_the_map_panel_fills_its_space_and_holds_its_legend(method, source, world, results, demos, work,
+                                                            crossroads_task):
+    """On an MDP archive as on a map, the map is as wide as its panel (not a thumbnail squeezed
+    by a legend wider than the panel) and the legend lies inside the panel."""
+    from expertise_irl.mdp import TabularMDP
+
+    if world == "crossroads":
+        mdp, trajs = crossroads_task
+    else:
+        npz = work / "corridor.npz"
+        if not npz.exists():
+            ok(invoke("export-mdp", "corridor", "--out", npz))
+        mdp = TabularMDP.load(npz)
+        trajs = read_demos_csv(demos, mdp)
+    zone_map = load_bundled(world) if source == "map" else None
+    fig = rp.result_figure(load(results[method]), source=results[method], mdp=mdp, zone_map=zone_map,
+                           trajs=trajs)
+    ax, box, legend, panel = map_panel(fig)
+    assert box.width >= 0.85 * panel.width, (box.width, panel.width)
+    assert box.height >= 0.3 * box.width  # corridor is 11 × 5 cells, crossroads 16 × 12
+    assert panel.x0 - 2 <= legend.x0 and legend.x1 <= panel.x1 + 2, (legend, panel)
+    assert panel.y0 - 8 <= legend.y0 and legend.y1 <= box.y0, (legend, panel, box)
+    assert fig.bbox.contains(legend.x0, legend.y0) and fig.bbox.contains(legend.x1, legend.y1)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "goal" in labels and any(t.startswith("episode 0: ") for t in labels)
+
+
 def test_bad_inputs_are_one_line_errors_naming_the_file(results, demos, tmp_path):
     out = tmp_path / "fig.png"
     not_json = tmp_path / "notes.json"

@@ -42,6 +42,8 @@ POST_COLOR = "#4c72b0"
 BAND_COLOR = "#a5c0e6"
 POINT_COLOR = "#c0392b"
 BOUNDARY_COLOR = "#868e96"
+#: Narrowest map panel (inches): a one-column legend of episodes fits below the map.
+MIN_MAP_PANEL = 3.6
 
 
 # --------------------------------------------------------------------- posterior
@@ -235,6 +237,23 @@ def draw_mdp_cells(ax: Axes, mdp: TabularMDP) -> Axes:
     return ax
 
 
+def map_key(mdp: TabularMDP, zone_map: ZoneMap | None) -> list:
+    """Legend handles of what :func:`draw_demos_on_map` draws of the task (before the episodes)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    from ..worlds.warehouse import WarehouseMap
+
+    if isinstance(zone_map, WarehouseMap):
+        from .floorplan import floor_plan_legend_handles
+
+        return floor_plan_legend_handles(zone_map)
+    if zone_map is not None:
+        return maps.map_legend_handles(zone_map)
+    return [Patch(fc="#fafafa", ec="#7a7a7a", lw=0.5, label="cell of a state"),
+            Line2D([], [], ls="", marker="o", ms=7, mfc=maps.GOAL_COLOR, mec="white", label="goal")]
+
+
 def _grid_of(mdp: TabularMDP):
     """A stand-in with ``width``/``height`` for path checks on an MDP archive."""
     xy = np.asarray(mdp.state_xy)
@@ -255,19 +274,15 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
     from ..worlds.warehouse import WarehouseMap
 
     if isinstance(zone_map, WarehouseMap):  # a floor plan: roads as arrows, restricted red
-        from .floorplan import draw_floor_plan, floor_plan_legend_handles
+        from .floorplan import draw_floor_plan
 
         draw_floor_plan(ax, zone_map, legend=False)
-        grid = zone_map
-        handles = floor_plan_legend_handles(zone_map)
     elif zone_map is not None:
         maps.draw_map(ax, zone_map, legend=False)
-        grid = zone_map
-        handles = maps.map_legend_handles(zone_map)
     else:
         draw_mdp_cells(ax, mdp)
-        grid = _grid_of(mdp)
-        handles = []
+    grid = zone_map if zone_map is not None else _grid_of(mdp)
+    handles = map_key(mdp, zone_map)
     if trajs is None:
         return handles
     paths = maps.paths_to_xy(trajs, mdp)
@@ -335,9 +350,8 @@ def result_figure(
     post_h = 2.0 * nrows
     map_w = 0.0
     if draw_map:
-        mw, mh = maps.map_size(zone_map, 5.5, 5.5) if zone_map is not None else (4.5, 4.5)
-        map_w = mw + 0.3
-        post_h = max(post_h, mh + (1.4 if trajs is not None else 0.6))
+        map_w, map_h = _map_panel_size(mdp, zone_map, trajs)
+        post_h = max(post_h, map_h)
     trace_h = 5.2 if trace else 0.0
     warnings = result_warnings(doc)
     warn_h = 0.25 + 0.16 * min(len(warnings), 4) if warnings else 0.0
@@ -397,14 +411,41 @@ def _draw_map_panel(top, map_w: float, post_w: float, mdp: TabularMDP, zone_map:
     sf_map, sf_post = top.subfigures(1, 2, width_ratios=[map_w, post_w], wspace=0.02)
     ax_map = sf_map.add_subplot()
     handles = draw_demos_on_map(ax_map, mdp, zone_map, trajs)
+    ax_map.set_anchor("N")  # spare height goes below the map, where the legend is
     n = trajs.n_episodes if trajs is not None else 0
     label = zone_map.name if zone_map is not None else Path(str(mdp.source)).name
-    ax_map.set_title(f"{label}: {n} episode{'s' if n != 1 else ''}" if trajs is not None else label,
-                     fontsize=9)
+    title = f"{label}: {n} episode{'s' if n != 1 else ''}" if trajs is not None else label
+    if zone_map is None:
+        title += "\ncells from state_xy (for zones: --map MAP)"
+    ax_map.set_title(title, fontsize=9)
     if handles:
-        ax_map.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=2,
-                      frameon=False, fontsize=7, handlelength=1.3, columnspacing=0.9)
+        _fit_legend(ax_map, handles, width=(map_w - 0.1) * top.dpi)
     return sf_post
+
+
+def _map_panel_size(mdp: TabularMDP, zone_map: ZoneMap | None, trajs: Trajectories | None
+                    ) -> tuple[float, float]:
+    """Inches of the map panel: the map (~0.42 in per cell, at most 5.5 in a side) and room
+    below it for the legend, at least as wide as a one-column legend of episodes."""
+    mw, mh = maps.map_size(zone_map if zone_map is not None else _grid_of(mdp), 5.5, 5.5)
+    shown = min(maps.DEMO_EPISODES, trajs.n_episodes) if trajs is not None else 0
+    n = len(map_key(mdp, zone_map)) + (1 + 2 * shown if shown else 0)  # + start and end markers, episodes
+    rows = math.ceil(n / 2) if mw >= 4.4 else n  # see _fit_legend
+    title = 0.45 if zone_map is None else 0.3  # an archive's title has a second line
+    return max(mw, MIN_MAP_PANEL) + 0.3, mh + title + 0.2 + 0.15 * rows
+
+
+def _fit_legend(ax: Axes, handles: list, width: float) -> None:
+    """The map's legend below it in two columns (the map's key, then the episodes), or in one
+    when two would be wider than ``width`` pixels: a legend wider than its panel would
+    squeeze the map (the layout makes room for it) and run into the next panel."""
+    for ncol in (2, 1):
+        leg = ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=ncol,
+                        frameon=False, fontsize=7, handlelength=1.3, columnspacing=0.9)
+        leg.set_gid("map-legend")
+        if ncol == 1 or leg.get_window_extent(ax.figure.canvas.get_renderer()).width <= width:
+            return
+        leg.remove()
 
 
 def _draw_discrete(doc: dict[str, Any], ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
