@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 import warnings
@@ -40,6 +41,16 @@ from expertise_irl.worlds.zones import load_bundled
 
 warnings.filterwarnings("ignore", category=FutureWarning)
 
+
+
+def _covers(interval, x) -> bool:
+    return interval is not None and bool(interval[0] <= x <= interval[1])
+
+
+def _or(v, worst: float) -> float:
+    """A statistic of the result, or its worst value where it is null (the reason is in
+    diagnostics.unavailable: a stuck chain, a run too short to judge)."""
+    return worst if v is None else float(v)
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -73,16 +84,17 @@ def main() -> None:
         res = get_method("nuts").run(mdp, trajs, opts, seed).fields
         wall = time.perf_counter() - t
         ci = res["credible_intervals"]
-        cov_beta = bool(ci["beta"][0] <= beta <= ci["beta"][1])
-        cov_theta = [bool(lo <= x <= hi) for x, (lo, hi) in zip(theta, ci["theta"], strict=True)]
+        cov_beta = _covers(ci["beta"], beta)  # a withheld interval (a stuck chain) covers nothing
+        cov_theta = [_covers(iv, x) for x, iv in zip(theta, ci["theta"], strict=True)]
         d = res["diagnostics"]
-        rhat = max([d["r_hat"]["beta"], *d["r_hat"]["theta"]])
-        ess = min([d["ess_bulk"]["beta"], *d["ess_bulk"]["theta"]])
+        rhat = max(_or(v, math.inf) for v in [d["r_hat"]["beta"], *d["r_hat"]["theta"]])
+        ess = min(_or(v, 0.0) for v in [d["ess_bulk"]["beta"], *d["ess_bulk"]["theta"]])
         rows.append({"seed": seed, "theta_true": theta.tolist(), "beta_true": beta,
                      "interval_beta": ci["beta"], "interval_theta": ci["theta"],
                      "covered_beta": cov_beta, "covered_theta": cov_theta,
                      "r_hat_max": rhat, "ess_min": ess, "divergences": d["divergences"], "wall_s": wall})
-        print(f"{seed:>4} {beta:6.3f} [{ci['beta'][0]:8.3f}, {ci['beta'][1]:8.3f}] "
+        lo, hi = ci["beta"] or (math.nan, math.nan)
+        print(f"{seed:>4} {beta:6.3f} [{lo:8.3f}, {hi:8.3f}] "
               f"{sum(cov_theta):>5}/{K:<4} {rhat:9.3f} {ess:8.0f} {wall:6.1f}")
     n = len(rows)
     cb = np.mean([r["covered_beta"] for r in rows])
