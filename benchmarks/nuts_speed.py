@@ -99,11 +99,10 @@ def measure(name: str, fn, mdp, trajs, model: str) -> dict:
     theta, beta, divergences, tree = fn(mdp, trajs, model, 0)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     stats = chain_statistics(theta, beta)
-    # a stuck parameter has no R-hat (None): count it as the worst
     ess = min([stats["ess_bulk"]["beta"], *stats["ess_bulk"]["theta"]])
     return {"config": name, "wall_s": wall, "cpu_s": cpu, "min_ess": ess, "ess_per_s": ess / wall,
             "tree_size": tree, "divergences": divergences, "beta_mean": float(beta.mean()),
-            "max_r_hat": max(float("inf") if r is None else r
+            "max_r_hat": max(float("inf") if r is None else r  # a stuck parameter has no R-hat: the worst
                              for r in [stats["r_hat"]["beta"], *stats["r_hat"]["theta"]])}
 
 
