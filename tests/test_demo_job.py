@@ -5,10 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from expertise_irl.experiments.demo import DEFAULT_EPISODES, DEFAULT_K, run_demo
+from expertise_irl.errors import InputError
+from expertise_irl.experiments.demo import DEFAULT_EPISODES, DEFAULT_K, DEMO_BETAS, demo_outputs, run_demo
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, expertise_group, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.metrics import cosine_similarity, policy_regret
+from expertise_irl.plots.maps import episode_outcomes
 
 SUMMARY_KEYS = {
     "theta_true", "beta_true", "group_true", "theta_hat", "beta_hat", "group_hat",
@@ -91,3 +93,46 @@ def test_options_and_progress():
     assert len(r.hypotheses) == 4 * 6
     assert calls and calls[-1] == (24, 24)
     assert r.hypotheses.index(r.theta_true, r.beta_true) is not None
+
+
+def test_the_default_person_is_an_expert_drawn_by_the_seed():
+    """β* comes from the high group, by the seed; the inference still weighs all six β."""
+    assert DEMO_BETAS == (0.01, 0.09)
+    drawn = {run_demo(seed, map_spec="corridor", episodes=2, k=2).beta_true for seed in range(8)}
+    assert drawn == set(DEMO_BETAS)
+
+
+def test_the_first_figure_shows_the_method_working():
+    """Seed 0, the README's figure: the person reaches the goal every time and is recovered."""
+    r = run_demo(0)
+    assert r.beta_true == 0.09
+    assert episode_outcomes(r.trajectories, r.mdp, r.max_steps) == ["goal"] * DEFAULT_EPISODES
+    s = r.summary()
+    assert s["group_hat"] == "high" and s["beta_hat"] == pytest.approx(0.09, abs=1e-6)
+    assert s["cosine_similarity"] > 0.99 and s["truth_probability"] > 0.9
+
+
+def test_beta_chooses_the_person_and_keeps_the_rest_of_the_seed():
+    expert = run_demo(3, map_spec="corridor", episodes=3, k=4)
+    novice = run_demo(3, map_spec="corridor", episodes=3, k=4, beta=10)
+    assert novice.beta_true == 10.0
+    np.testing.assert_array_equal(novice.theta_true, expert.theta_true)
+    np.testing.assert_array_equal(novice.hypotheses.thetas, expert.hypotheses.thetas)
+    assert run_demo(3, map_spec="corridor", episodes=3, k=4, beta=0.09 + 1e-12).beta_true == 0.09
+    with pytest.raises(InputError, match=r"--beta 2: .*0\.01, 0\.09, 0\.5, 1, 5, 10"):
+        run_demo(3, map_spec="corridor", beta=2)
+
+
+def test_outputs_of_a_chosen_beta_sit_beside_the_default_ones(tmp_path):
+    assert demo_outputs(tmp_path, 0) == (tmp_path / "demo-seed0.png", tmp_path / "result-seed0.json")
+    assert demo_outputs(tmp_path, 0, "crossroads", 10) == (tmp_path / "demo-crossroads-seed0-beta10.png",
+                                                           tmp_path / "result-crossroads-seed0-beta10.json")
+    assert demo_outputs(tmp_path, 1, None, 0.5)[0].name == "demo-seed1-beta0.5.png"
+
+
+def test_a_beta_outside_the_paper_s_is_refused_before_any_output(tmp_path):
+    from cli_helpers import assert_input_error, invoke
+
+    assert_input_error(invoke("demo", "--map", "corridor", "--beta", "2", "--out", tmp_path / "d"),
+                       "--beta 2", "0.01, 0.09, 0.5, 1, 5, 10")
+    assert not (tmp_path / "d").exists()

@@ -259,10 +259,10 @@ def test_theta_summary_without_truth_or_top_list():
 # ------------------------------------------------------------------- demo figure
 @pytest.fixture(scope="module")
 def wandering_run():
-    """Seed 0: β* = 10 on a generated map without roads; every episode runs to the cap."""
+    """Seed 0 with --beta 10: a generated map without roads; every episode runs to the cap."""
     from expertise_irl.experiments.demo import run_demo
 
-    return run_demo(0, episodes=5)
+    return run_demo(0, episodes=5, beta=10)  # a novice who wanders until the step cap
 
 
 @pytest.fixture(scope="module")

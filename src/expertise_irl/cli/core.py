@@ -49,6 +49,9 @@ def demo(
     episodes: Annotated[int, typer.Option(min=1, help="Episodes the simulated person demonstrates.")] = 20,
     k: Annotated[int, typer.Option(min=1, help="Preference vectors in the hypothesis set Θ_k.")] = 20,
     model: ModelOption = "maxent",
+    beta: Annotated[float | None, typer.Option(
+        "--beta", help="The person's expertise β*, one of the paper's 0.01, 0.09, 0.5, 1, 5, 10 "
+        "(default: an expert, 0.01 or 0.09, drawn by --seed; --beta 10 is a novice).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite this seed's figure and result.")] = False,
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
@@ -61,16 +64,16 @@ def demo(
     zone_map = resolve_map(map_spec) if map_spec else None
     if zone_map is not None:
         zone_map.to_mdp()  # validate the map before any output is started
+    png, js = demo_outputs(out_dir, seed, map_spec, beta)  # refuses a β* not among the paper's
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a directory")
     out_dir.mkdir(parents=True, exist_ok=True)
-    png, js = demo_outputs(out_dir, seed, map_spec)
     for p in (png, js):
         check_writable(p, force=force, inputs=_map_files(map_spec))
     prepare_solver()
     t0 = time.perf_counter()
     with _progress() as bar:
-        run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k, model=model,
+        run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k, model=model, beta=beta,
                        progress=_solve_progress(bar, "solving soft value iteration"))
     elapsed = time.perf_counter() - t0
     s = run.summary()
@@ -96,7 +99,8 @@ def demo(
     doc = discrete_result(
         b, feature_names=names,
         settings={"command": "demo", "seed": seed, "map": run.zone_map.name, "episodes": episodes,
-                  "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim", "model": model,
+                  "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim", "beta": beta,
+                  "model": model,
                   "gamma": run.mdp.gamma, "goal_bonus": run.zone_map.goal_bonus},
         data={"episodes": run.trajectories.n_episodes, "actions": len(run.trajectories)},
     )

@@ -2,8 +2,14 @@
 
 Following the paper's protocol (Sec. VI-A): sample Θ_k (k preference vectors)
 from the ``paper-sim`` grid, take Ψ_k = Θ_k × B with the paper's six
-temperatures, draw the truth (θ*, β*) uniformly from Ψ_k, simulate episodes
-from random start states, and run discrete-set inference on them.
+temperatures, draw the truth (θ*, β*) from Ψ_k, simulate episodes from random
+start states, and run discrete-set inference on them.
+
+By default β* is drawn from the high expertise group (``DEMO_BETAS``: 0.01 or 0.09),
+people who reach the goal, so that the first figure shows the method at work; the
+inference still weighs all six temperatures. A less expert person (β* from 0.5 to 10:
+under the paper's max-ent model, one who may wander until the step cap) is the
+``beta`` argument (``expertise-irl demo --beta 10``).
 """
 
 from __future__ import annotations
@@ -18,8 +24,10 @@ import numpy as np
 
 from ..demos.simulation import DEFAULT_MAX_STEPS, simulate
 from ..demos.trajectories import Trajectories
+from ..errors import InputError
 from ..hypotheses import (
     BETA_PRESETS,
+    GROUP_NAMES,
     THETA_PRESETS,
     HypothesisSet,
     expertise_group,
@@ -36,6 +44,8 @@ DEFAULT_EPISODES = 20
 DEFAULT_K = 20
 #: Side range of the random map the demo generates when no map is given.
 DEMO_MAP_SIZE = (10, 20)
+#: The temperatures the default person's β* is drawn from: the paper's, in the high expertise group.
+DEMO_BETAS = tuple(b for b in BETA_PRESETS["paper-sim"] if expertise_group(b) == GROUP_NAMES[0])
 
 
 @dataclass(frozen=True)
@@ -84,13 +94,16 @@ def run_demo(
     k: int = DEFAULT_K,
     progress: Callable[[int, int], None] | None = None,
     model: str = DEFAULT_MODEL,
+    beta: float | None = None,
 ) -> DemoRun:
     """Run the demo job deterministically from ``seed`` (no files written).
 
     The map is ``zone_map`` if given, else ``map_spec`` (a file or bundled name), else a
     random map generated from the seed. ``model`` is the observation model of the simulated
-    person and of the inference (:mod:`expertise_irl.models`).
+    person and of the inference (:mod:`expertise_irl.models`). ``beta`` is the person's β*,
+    one of the paper's six temperatures; by default it is drawn from ``DEMO_BETAS``.
     """
+    choices = DEMO_BETAS if beta is None else (paper_beta(beta),)
     map_seq, set_seq, truth_seq, sim_seq = np.random.SeedSequence(seed).spawn(4)
     if zone_map is None and map_spec is not None:
         zone_map = resolve_map(map_spec)
@@ -104,7 +117,7 @@ def run_demo(
     hyp = HypothesisSet(thetas, BETA_PRESETS["paper-sim"])
     rng_truth = np.random.default_rng(truth_seq)
     theta_true = hyp.thetas[int(rng_truth.integers(hyp.n_theta))]
-    beta_true = float(hyp.betas[int(rng_truth.integers(hyp.n_beta))])
+    beta_true = float(choices[int(rng_truth.integers(len(choices)))])
     prior = DiscreteBelief.from_mdp(mdp, hyp, progress=progress, model=model)
     truth = hyp.index(theta_true, beta_true)
     assert truth is not None
@@ -120,14 +133,26 @@ def run_demo(
                    max_steps=DEFAULT_MAX_STEPS)
 
 
-def demo_outputs(out_dir: Path, seed: int, map_spec: str | None = None) -> tuple[Path, Path]:
-    """Paths of the demo's figure and result JSON inside ``out_dir``: one pair per seed and map.
+def paper_beta(beta: float) -> float:
+    """``beta`` as one of the paper's temperatures (the demo's hypothesis set holds only those)."""
+    for b in BETA_PRESETS["paper-sim"]:
+        if np.isclose(beta, b, rtol=1e-9, atol=0.0):
+            return float(b)
+    raise InputError(f"--beta {beta:g}: the demo's person has one of the paper's temperatures "
+                     f"({', '.join(f'{b:g}' for b in BETA_PRESETS['paper-sim'])})")
+
+
+def demo_outputs(out_dir: Path, seed: int, map_spec: str | None = None,
+                 beta: float | None = None) -> tuple[Path, Path]:
+    """Paths of the demo's figure and result JSON inside ``out_dir``: one pair per seed, map and β*.
 
     The random map of a seed gives ``demo-seed{seed}.png``; ``--map`` (a bundled name or a file)
-    adds the map's name, ``demo-{name}-seed{seed}.png``, so demos on several maps share a folder.
+    adds the map's name, ``demo-{name}-seed{seed}.png``, so demos on several maps share a folder;
+    ``--beta`` adds ``-beta{β*}`` (``demo-seed0-beta10.png``).
     """
     tag = ""
     if map_spec is not None:
         stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(map_spec).stem).strip("._") or "map"
         tag = f"{stem}-"
-    return out_dir / f"demo-{tag}seed{seed}.png", out_dir / f"result-{tag}seed{seed}.json"
+    end = "" if beta is None else f"-beta{paper_beta(beta):g}"
+    return out_dir / f"demo-{tag}seed{seed}{end}.png", out_dir / f"result-{tag}seed{seed}{end}.json"
