@@ -80,7 +80,7 @@ def demo(
     names = run.mdp.feature_names
     _say(f"map {run.zone_map.name}: {run.mdp.n_states} states; {len(run.hypotheses)} hypotheses "
          f"({run.hypotheses.n_theta} θ × {run.hypotheses.n_beta} β); "
-         f"{run.trajectories.n_episodes} episodes, {len(run.trajectories)} actions")
+         f"{plural(run.trajectories.n_episodes, 'episode')}, {plural(len(run.trajectories), 'action')}")
     table = Table(title=escape(f"expertise-irl demo, seed {seed}: true vs inferred"))
     table.add_column("")
     table.add_column("true", justify="right")

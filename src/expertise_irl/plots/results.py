@@ -391,7 +391,8 @@ def _title(doc: dict[str, Any], source: Path, subtitle: str) -> str:
     data = doc.get("data") if isinstance(doc.get("data"), dict) else {}
     what = ""
     if is_number(data.get("episodes")) and is_number(data.get("actions")):
-        what = f", {int(data['episodes'])} episodes, {int(data['actions'])} actions"
+        n, m = int(data["episodes"]), int(data["actions"])
+        what = f", {n} episode{'s' * (n != 1)}, {m} action{'s' * (m != 1)}"
     return (f"{source.name}: {doc['method']}{what}; β̂ = {doc['beta_hat']:.3g} "
             f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}")
 
