@@ -84,4 +84,5 @@ def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
     at = smoke[(smoke.truth == "in_set") & (smoke.episodes == smoke.episodes.max())]
     rho = pearsonr(at["n_hypotheses"], at["policy_regret"]).statistic
     cell = table3[table3.row.str.startswith("In set") & (table3.metric == "policy_regret")]
-    assert cell["rho"].item() == pytest.approx(rho, rel=1e-12) and cell["n"].item() == len(at)
+    # the table's CSV holds 10 significant digits (report.output.FLOAT_FORMAT)
+    assert cell["rho"].item() == pytest.approx(rho, rel=1e-9) and cell["n"].item() == len(at)
