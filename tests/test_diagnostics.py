@@ -126,6 +126,7 @@ def test_one_stuck_chain_among_several():
     w = dg.nuts_warnings({**s, "divergences": 0, "chains": 4}, NAMES, s["stuck"])
     assert len(w) == 1 and w[0].startswith("chain 2 (of 0–3) did not move in β: every draw after warm-up "
                                            "has β = ") and "--warmup" in w[0], w
+    assert "the estimate pools chains that did not move" in w[0]  # three chains moved: β̂ is not that value
 
 
 def test_a_short_constant_chain_is_not_judged_stuck():
@@ -138,7 +139,7 @@ def test_a_nan_statistic_gets_a_reason():
     s = {"r_hat": None, "ess_bulk": {"beta": float("nan"), "theta": [1.0, 2.0]}, "unavailable": {}}
     s["ess_bulk"]["beta"] = None
     dg._apply_stuck(s, {}, 2, NAMES)
-    assert s["unavailable"] == {"ess_bulk.beta": "not a finite number for this run"}
+    assert s["unavailable"] == {"ess_bulk.beta": "bulk ESS of β is not a finite number for this run"}
 
 
 def test_nuts_warnings():
@@ -220,3 +221,12 @@ def test_a_real_experts_single_demonstration_warns_with_the_default_grid():
     assert post.marginal_beta()[1][0] >= dg.EDGE_MASS
     w = dg.discrete_warnings(post, mdp.feature_names)
     assert any("smallest β of the grid (0.01)" in m and "--betas 0.001," in m for m in w), w
+
+
+def test_one_feature_on_the_simplex_is_not_stuck():
+    """θ = [1] in every draw is what the simplex allows with one feature, not a frozen chain; β still
+    is judged."""
+    theta = np.ones((2, 50, 1))
+    beta = np.random.default_rng(0).uniform(0.5, 2.0, (2, 50))
+    assert dg.stuck_parameters(theta, beta) == {}
+    assert set(dg.stuck_parameters(theta, np.ones((2, 50)))) == {0}

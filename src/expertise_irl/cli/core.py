@@ -265,7 +265,7 @@ def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
         _note(f"{doc['n_impossible']} of {n_hypotheses} hypotheses cannot produce the demonstrations")
     ci = doc.get("credible_intervals")
     if ci and ci["beta"] is None:
-        _say("90% credible interval of β: none (the chain did not move in β; see the warning)")
+        _say("90% credible interval of β: none (a chain did not move in β; see the warning)")
     elif ci:
         _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
     for w in doc["diagnostics"].get("warnings", []):

@@ -69,12 +69,15 @@ def stuck_parameters(theta: np.ndarray, beta: np.ndarray) -> dict[int, dict[int,
     Returns ``{i: {chain: value}}`` with ``i`` = 0 for β and ``k + 1`` for θ_k: in each listed
     chain every draw of that parameter is the same ``value``. Such a chain says nothing about the
     posterior's spread; ArviZ reports the ESS of a constant series as its length and its R-hat as
-    NaN. Chains shorter than the statistics' minimum (:data:`_MIN_DRAWS`) are not judged.
+    NaN. Chains shorter than the statistics' minimum (:data:`_MIN_DRAWS`) are not judged, nor is a
+    θ that the parameterisation fixes (one feature on the simplex: θ = [1] in every draw).
     """
     C, D = beta.shape
     if D < _MIN_DRAWS:
         return {}
-    series = [beta, *(theta[..., k] for k in range(theta.shape[-1]))]
+    K = theta.shape[-1]
+    fixed = K == 1 and np.all(theta == 1.0)  # one feature on the simplex: θ = [1] by definition
+    series = [beta, *(() if fixed else (theta[..., k] for k in range(K)))]
     out: dict[int, dict[int, float]] = {}
     for i, x in enumerate(series):
         per_chain = {c: float(x[c, 0]) for c in range(C) if np.all(x[c] == x[c, 0])}
@@ -113,7 +116,9 @@ def _apply_stuck(out: dict[str, Any], stuck, n_chains: int, feature_names) -> No
             else:
                 new = values["beta"] if i == 0 else values["theta"][i - 1]
                 if new is None:
-                    out["unavailable"][key] = "not a finite number for this run"
+                    label = "R-hat" if stat == "r_hat" else "bulk ESS"
+                    out["unavailable"][key] = (f"{label} of {_param_names(feature_names)[i]} is not a finite "
+                                               "number for this run")
             if i == 0:
                 values["beta"] = new
             else:
@@ -228,9 +233,10 @@ def stuck_warnings(stuck, *, chains: int, feature_names, draws: str, remedy: str
             where = f"every {draws} has {values}"
         else:
             where = f"each repeats one value in every {draws}"
+        estimate = ("the estimate is that one value" if len(which) == chains else
+                    "the estimate pools chains that did not move")
         out.append(f"{_who(which, chains)} did not move in {listed}: {where}, so there is no posterior to "
-                   "summarise there (ESS 0; R-hat and 90% interval null; the estimate is that one value); "
-                   f"{remedy}")
+                   f"summarise there (ESS 0; R-hat and 90% interval null; {estimate}); {remedy}")
     return out
 
 
