@@ -271,9 +271,9 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     def nuts_one(n: int):
         r, t = _timed(lambda: nuts_fit(trajs.first(n), cfg.nuts_warmup, cfg.nuts_samples,
                                        cfg.nuts_chains, seeds["nuts"] + n))
-        # None (not computable, or a chain that did not move) counts as NaN, not as converged
-        rhat = np.nan if r.r_hat is None else float(np.max(np.array([r.r_hat["beta"], *r.r_hat["theta"]],
-                                                                     dtype=float)))
+        # a parameter without R-hat (a chain that did not move in it) is the worst case, never dropped
+        rhat = np.nan if r.r_hat is None else max(np.inf if x is None else float(x)
+                                                  for x in [r.r_hat["beta"], *r.r_hat["theta"]])
         return r.mean_theta, r.mean_beta, t, {"divergences": float(r.divergences), "max_rhat": rhat}
 
     methods = {
@@ -356,7 +356,8 @@ COLUMNS = (
                        "solve plus the belief updates)",
         "acceptance_rate": "Algorithm 1's accepted moves / iterations (NaN otherwise)",
         "divergences": "NUTS divergent transitions after warm-up (NaN otherwise)",
-        "max_rhat": "NUTS: largest split-R̂ over β and θ (NaN otherwise)",
+        "max_rhat": "NUTS: largest split-R̂ over β and θ (inf when a chain did not move in one of them; "
+                    "NaN for the other methods or when R̂ is not computed)",
     }),
 )
 
