@@ -114,7 +114,7 @@ def status_cmd(
 
 
 def estimate_s(tasks, workers: int) -> float:
-    """Estimated seconds of a first run of ``tasks`` on ``workers`` local workers (their cost models'
+    """Estimated seconds of a run of ``tasks`` on ``workers`` local workers (their cost models'
     seconds spread evenly over the workers, plus starting them)."""
     return STARTUP_S + sum(t.estimate_s for t in tasks) / min(workers, len(tasks))
 
@@ -128,8 +128,9 @@ def list_cmd(
     """Studies and their scales: tasks, instances, rows, solves, and an estimated time.
 
     The estimate comes from each study's cost model (timed on a 2-core laptop) spread over the
-    local workers; it is not measured here. It is for a first run (JAX's compilation cache
-    empty); a later run on the same maps skips the compilation (docs/experiments.md).
+    local workers; it is not measured here. The models are fitted to measured runs: `conditions`'
+    to a first run (JAX's compilation cache empty), the others' to runs with the kernels already
+    compiled, which a first run exceeds by up to ≈ 30 s per map (docs/experiments.md).
     """
     from rich.table import Table
 
@@ -137,8 +138,8 @@ def list_cmd(
     from ..experiments.studies import studies
 
     n = workers or cores()
-    table = Table(title=f"studies (estimated time of a first run, compilation cache empty, with {n} local "
-                        "worker(s), from timings on a 2-core laptop)")
+    table = Table(title=f"studies (estimated time with {n} local worker(s), from timings on a 2-core "
+                        "laptop; a first run also compiles, up to ≈ 30 s per map)")
     for name in ("study", "scale", "tasks", "instances", "rows", "set solves (grouped / ungrouped)",
                  "estimated time"):
         table.add_column(name, justify="left" if name in ("study", "scale") else "right",
