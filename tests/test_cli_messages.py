@@ -37,3 +37,9 @@ def test_one_episode_is_one_episode(tmp_path):
                  "--seed", "0", "--out", out)
     ok(res)
     assert ": 1 episode, " in res.stdout and "1 episodes" not in res.stdout, res.stdout
+
+
+def test_counts_agree_with_their_nouns():
+    from expertise_irl.errors import plural
+
+    assert [plural(n, "move") for n in (0, 1, 2)] == ["0 moves", "1 move", "2 moves"]

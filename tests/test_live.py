@@ -528,7 +528,7 @@ def test_live_and_next_start_commands_on_a_floor_plan(tmp_path, plan_path, monke
     demos.write_text("episode,step,x,y,heading\n0,0,0,0,h\n0,1,0,1,v\n")
     r = invoke("live", plan_path, "--thetas", "0,1", "--out", out, "--port", 0)
     ok(r)
-    assert "resumed 1 episode(s), 1 actions" in r.stderr + r.stdout
+    assert "resumed 1 episode, 1 action from" in r.stderr + r.stdout
     r = invoke("next-start", plan_path, "--demos", demos, "--thetas", "0,1", "--samples", 8, "--seed", 1)
     ok(r)
     assert r.stdout.startswith("next start: ") and "expected information gain" in r.stdout

@@ -38,3 +38,8 @@ def read_text(path: str | Path, problem: str = "not a text file (UTF-8)", *, enc
         return Path(path).read_text(encoding=encoding)
     except UnicodeDecodeError:
         raise InputError(f"{path}: {problem}") from None
+
+
+def plural(n: int, noun: str) -> str:
+    """``"1 episode"``, ``"2 episodes"``: a count and its noun in agreement (regular plurals)."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

@@ -21,7 +21,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from typer.core import TyperGroup, TyperOption
 
 from .. import __version__
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError, InputError, plural
 
 
 class _OneLineErrors(TyperGroup):
@@ -68,11 +68,6 @@ app = typer.Typer(
 )
 out = Console()
 err = Console(stderr=True)
-
-
-def plural(n: int, noun: str) -> str:
-    """``"1 episode"``, ``"2 episodes"``: a count and its noun in agreement (regular plurals)."""
-    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _say(message: str) -> None:
@@ -194,7 +189,7 @@ def _report_capped(trajs, mdp, max_steps: int, model: str) -> int:
 
     n, total = capped_episodes(trajs, mdp, max_steps), trajs.n_episodes
     if n:
-        _note(f"{n} of {total} episodes hit the {max_steps}-step cap without reaching a goal")
+        _note(f"{n} of {plural(total, 'episode')} hit the {max_steps}-step cap without reaching a goal")
     if total and n > total / 2:
         why = ("under the maxent model the entropy bonus pays a person whose β is large next to "
                "their weights to keep moving rather than finish; --model maxent-relative removes "

@@ -11,7 +11,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..errors import InputError
+from ..errors import InputError, plural
 from ._app import (
     ModelOption,
     _check_beta,
@@ -28,7 +28,6 @@ from ._app import (
     app,
     handles_errors,
     out,
-    plural,
     prepare_solver,
 )
 
@@ -272,7 +271,7 @@ def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
         _warn(w)
     extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
     what = f"{n_hypotheses} hypotheses" if doc["method"] == "discrete" else doc["method"]
-    _say(f"wrote {out_path}{extra} ({what}, {n_actions} actions, {doc['run_time_s']:.1f} s)")
+    _say(f"wrote {out_path}{extra} ({what}, {plural(n_actions, 'action')}, {doc['run_time_s']:.1f} s)")
 
 
 def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:

@@ -8,10 +8,11 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ..errors import InputError
+from ..errors import InputError, plural
 from ._app import (
     _load_mdp,
     _note,
+    _os_reason,
     _progress,
     _say,
     _solve_progress,
@@ -76,8 +77,7 @@ def live(
     try:
         sock = bind(host, port)
     except OSError as exc:
-        why = exc.strerror or exc
-        raise InputError(f"--host {host} --port {port}: cannot listen there ({why})") from None
+        raise InputError(f"--host {host} --port {port}: cannot listen there ({_os_reason(exc)})") from None
     try:
         prepare_solver()
         with _progress() as bar:
@@ -88,7 +88,8 @@ def live(
         raise
     est = session.estimator
     if est.n_observed:
-        _note(f"resumed {est.n_episodes} episode(s), {est.n_observed} actions from {session.demos_path}")
+        _note(f"resumed {plural(est.n_episodes, 'episode')}, {plural(est.n_observed, 'action')} from "
+              f"{session.demos_path}")
 
     def ready(url: str) -> None:
         _say(f"live page: {url}  ({len(hyp)} hypotheses on {zone_map.name}; recording to {out_dir}; "
@@ -101,7 +102,7 @@ def live(
         serve(session, sock, on_ready=ready)
     except KeyboardInterrupt:  # uvicorn shuts down cleanly, then re-raises the Ctrl-C
         pass
-    _say(f"stopped: {est.n_observed} actions in {session.demos_path}")
+    _say(f"stopped: {plural(est.n_observed, 'action')} in {session.demos_path}")
 
 
 @app.command("next-start")

@@ -10,6 +10,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..errors import plural
 from ._app import (
     _load_mdp,
     _map_files,
@@ -20,7 +21,6 @@ from ._app import (
     app,
     handles_errors,
     out,
-    plural,
     prepare_solver,
 )
 
@@ -80,7 +80,7 @@ def compare_models_command(
     out.print(table)
     if cmp.n_test_episodes:
         _note(f"held out the last {cmp.n_test_episodes} of {plural(trajs.n_episodes, 'episode')} "
-              f"({cmp.n_test_actions} actions); fitted on the first {cmp.n_fit_episodes}")
+              f"({plural(cmp.n_test_actions, 'action')}); fitted on the first {cmp.n_fit_episodes}")
     for why in cmp.unavailable.values():
         _note(why)
     _say(f"best: {cmp.best.model}")

@@ -8,8 +8,8 @@ from typing import Annotated
 
 import typer
 
-from ..errors import InputError
-from ._app import ModelOption, _map_files, _note, _say, app, handles_errors, plural
+from ..errors import InputError, plural
+from ._app import ModelOption, _map_files, _note, _say, app, handles_errors
 
 #: Options shared with the commands that ingest recordings.
 RateOption = Annotated[float, typer.Option(
@@ -81,7 +81,7 @@ def discretise(
     for ep in result.episodes:
         end = "reached a goal" if ep.reached_goal else "ended before a goal"
         _say(f"episode {ep.episode}: {len(ep.samples_xy)} samples, {len(ep.kept)} kept at "
-             f"{result.rate:g} Hz, {ep.moves} moves, {end}; filled gaps {ep.filled_gaps}, "
+             f"{result.rate:g} Hz, {plural(ep.moves, 'move')}, {end}; filled gaps {ep.filled_gaps}, "
              f"snapped samples {ep.snapped_samples}")
         if ep.after_goal:
             _note(f"episode {ep.episode}: the robot drove on after entering a goal; "

@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
-from ..errors import InputError
+from ..errors import InputError, plural
 from ..worlds.grid import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
 from ..worlds.zones import AVOID, SLOW, TRAFFIC, ZoneMap
 
@@ -659,9 +659,9 @@ def draw_episodes(
         marker = {"goal": "*", "cap": "X", "cut": "s"}[outcome]
         ax.plot(*end, ls="", marker=marker, ms=11 if marker == "*" else 8.5, mfc=c, mec="white",
                 mew=1.0, zorder=7, gid=f"episode-{i}-end")
-        what = {"goal": f"reached the goal in {moves} moves",
+        what = {"goal": f"reached the goal in {plural(moves, 'move')}",
                 "cap": f"stopped at the {moves}-step cap",
-                "cut": f"ended after {moves} moves"}[outcome]
+                "cut": f"ended after {plural(moves, 'move')}"}[outcome]
         if len(shown) < len(p):
             what += f" (first {max_moves} drawn)"
         label = labels[i] if labels is not None else f"episode {i}"

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..errors import plural
 from ..hypotheses import GROUP_NAMES as GROUPS
 from ..results import SAMPLED, is_number, load_samples
 from . import maps
@@ -392,7 +393,7 @@ def _title(doc: dict[str, Any], source: Path, subtitle: str) -> str:
     what = ""
     if is_number(data.get("episodes")) and is_number(data.get("actions")):
         n, m = int(data["episodes"]), int(data["actions"])
-        what = f", {n} episode{'s' * (n != 1)}, {m} action{'s' * (m != 1)}"
+        what = f", {plural(n, 'episode')}, {plural(m, 'action')}"
     return (f"{source.name}: {doc['method']}{what}; β̂ = {doc['beta_hat']:.3g} "
             f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}")
 
@@ -415,7 +416,7 @@ def _draw_map_panel(top, map_w: float, post_w: float, mdp: TabularMDP, zone_map:
     ax_map.set_anchor("N")  # spare height goes below the map, where the legend is
     n = trajs.n_episodes if trajs is not None else 0
     label = zone_map.name if zone_map is not None else Path(str(mdp.source)).name
-    title = f"{label}: {n} episode{'s' if n != 1 else ''}" if trajs is not None else label
+    title = f"{label}: {plural(n, 'episode')}" if trajs is not None else label
     if zone_map is None:
         title += "\ncells from state_xy (for zones: --map MAP)"
     ax_map.set_title(title, fontsize=9)
@@ -489,9 +490,8 @@ def _draw_samples(doc: dict[str, Any], source: Path, ax_beta: Axes, ax_th, beta_
                      withheld=t_ints is not None and t_ints[i] is None)
     n_chains = len(np.unique(chain))
     few = " (too few to show a shape)" if len(beta) < 50 else ""
-    return (f"{len(beta)} draw{'s' if len(beta) != 1 else ''}{few} from {n_chains} "
-            f"chain{'s' if n_chains != 1 else ''}; shaded = 90% credible interval; "
-            "dashed = posterior mean; ▲ = best draw")
+    return (f"{plural(len(beta), 'draw')}{few} from {plural(n_chains, 'chain')}; "
+            "shaded = 90% credible interval; dashed = posterior mean; ▲ = best draw")
 
 
 def _draw_optimum(doc: dict[str, Any], ax_beta: Axes, ax_th) -> str:
