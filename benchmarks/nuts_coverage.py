@@ -42,7 +42,6 @@ from expertise_irl.worlds.zones import load_bundled
 warnings.filterwarnings("ignore", category=FutureWarning)
 
 
-
 def _covers(interval, x) -> bool:
     return interval is not None and bool(interval[0] <= x <= interval[1])
 
@@ -51,6 +50,7 @@ def _or(v, worst: float) -> float:
     """A statistic of the result, or its worst value where it is null (the reason is in
     diagnostics.unavailable: a stuck chain, a run too short to judge)."""
     return worst if v is None else float(v)
+
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

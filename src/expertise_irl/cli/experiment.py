@@ -61,8 +61,8 @@ def run_cmd(
     cfg = st.config(scale)  # a bad scale (or config file) is reported before any directory is made
     cfg = config_from_toml(st, config, cfg) if config is not None else None
     bar = QuietProgress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TextColumn("tasks, {task.fields[rows]} rows"), TimeRemainingColumn(), console=err,
-                   transient=False)
+                        TextColumn("tasks, {task.fields[rows]} rows"), TimeRemainingColumn(), console=err,
+                        transient=False)
     state = {"task": None, "rows": 0}
 
     def on_start(total: int, todo: int) -> None:

@@ -207,7 +207,7 @@ class LiveSession:
                 f"(median {float(np.median(sc.gain)):.2f}).", gain=g)
         self.start = choice
         self.position = choice.state
-        label = self._next_episode_label()  # a restart between episodes chooses this start again
+        label = self._next_episode_label()  # one entry per episode: a restart between episodes replaces it
         self.starts_log = [d for d in self.starts_log
                            if not (isinstance(d, dict) and d.get("episode") == label)]
         self.starts_log.append({"episode": label, "xy": self._xy(choice.state),
