@@ -43,3 +43,12 @@ def test_counts_agree_with_their_nouns():
     from expertise_irl.errors import plural
 
     assert [plural(n, "move") for n in (0, 1, 2)] == ["0 moves", "1 move", "2 moves"]
+
+
+def test_system_reasons_in_the_package_s_words():
+    import errno
+
+    from expertise_irl.errors import os_reason
+
+    assert os_reason(FileNotFoundError(errno.ENOENT, "No such file or directory", "x")) == "no such file"
+    assert os_reason(PermissionError(errno.EACCES, "Permission denied", "x")) == "permission denied"

@@ -43,3 +43,11 @@ def read_text(path: str | Path, problem: str = "not a text file (UTF-8)", *, enc
 def plural(n: int, noun: str) -> str:
     """``"1 episode"``, ``"2 episodes"``: a count and its noun in agreement (regular plurals)."""
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
+def os_reason(exc: OSError) -> str:
+    """The system's reason in the words of the package's own messages ("no such file", lower case)."""
+    if isinstance(exc, FileNotFoundError):
+        return "no such file"
+    text = exc.strerror or str(exc)
+    return text[:1].lower() + text[1:]

@@ -21,7 +21,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from typer.core import TyperGroup, TyperOption
 
 from .. import __version__
-from ..errors import ConvergenceError, InputError, plural
+from ..errors import ConvergenceError, InputError, os_reason, plural
 
 
 class _OneLineErrors(TyperGroup):
@@ -98,14 +98,6 @@ def _fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
-def _os_reason(exc: OSError) -> str:
-    """The system's reason in the words of the package's own messages ("no such file", lower case)."""
-    if isinstance(exc, FileNotFoundError):
-        return "no such file"
-    text = exc.strerror or str(exc)
-    return text[:1].lower() + text[1:]
-
-
 def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Turn input problems into a one-line message and exit code 2 (no traceback)."""
 
@@ -118,7 +110,7 @@ def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except ConvergenceError as exc:
             _fail(str(exc), code=1)
         except OSError as exc:  # a file we were asked to read or write cannot be
-            _fail(f"{exc.filename or 'file'}: {_os_reason(exc)}")
+            _fail(f"{exc.filename or 'file'}: {os_reason(exc)}")
         except KeyboardInterrupt:
             _fail("interrupted", code=130)
 

@@ -8,11 +8,10 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ..errors import InputError, plural
+from ..errors import InputError, os_reason, plural
 from ._app import (
     _load_mdp,
     _note,
-    _os_reason,
     _progress,
     _say,
     _solve_progress,
@@ -77,7 +76,7 @@ def live(
     try:
         sock = bind(host, port)
     except OSError as exc:
-        raise InputError(f"--host {host} --port {port}: cannot listen there ({_os_reason(exc)})") from None
+        raise InputError(f"--host {host} --port {port}: cannot listen there ({os_reason(exc)})") from None
     try:
         prepare_solver()
         with _progress() as bar:

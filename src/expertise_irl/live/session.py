@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, os_reason
 from ..hypotheses import HypothesisSet
 from ..inference.active import expected_information_gain
 from ..inference.online import OnlineEstimator
@@ -115,7 +115,7 @@ class LiveSession:
         try:
             self.write_result()
         except OSError as exc:
-            text += (f" (Could not save it in {RESULT_NAME}: {exc.strerror or exc}; a restart will "
+            text += (f" (Could not save it in {RESULT_NAME}: {os_reason(exc)}; a restart will "
                      "not keep it.)")
         return [self.state_message(message=text)]
 
@@ -137,7 +137,7 @@ class LiveSession:
             if first:
                 self.estimator.end_episode()
             return [{"type": "error", "message": f"could not record the move in {DEMOS_NAME}: "
-                                                 f"{exc.strerror or exc}; it was not counted"}]
+                                                 f"{os_reason(exc)}; it was not counted"}]
         self.history_beta.append(est.beta_hat)
         self.history_entropy.append(est.entropy)
         self.position = nxt
