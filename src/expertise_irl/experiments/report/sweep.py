@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ...errors import InputError
+from ...results import is_number
 from ..store import MANIFEST, SweepDir
 
 
@@ -78,7 +78,7 @@ class Sweep:
         out = []
         for r in self.runs:
             v = r.get("wall_time_s")
-            if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0:
+            if is_number(v) and v >= 0:
                 out.append(float(v))
         return out
 
