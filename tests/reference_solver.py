@@ -60,7 +60,7 @@ _EXTENDED = _Arith(np.longdouble, np.exp, np.log, float(np.finfo(np.longdouble).
 
 
 def _rewards(mdp: TabularMDP, theta, ar: _Arith) -> tuple[list[list[int]], list[list]]:
-    """Per state: its available actions and their rewards θ · φ(s, a) (none if terminal)."""
+    """Per state: its available actions and their rewards θ · φ(s, a) + offset (none if terminal)."""
     theta = [ar.num(t) for t in np.asarray(theta, dtype=np.float64).tolist()]
     actions: list[list[int]] = []
     rewards: list[list] = []
@@ -72,6 +72,8 @@ def _rewards(mdp: TabularMDP, theta, ar: _Arith) -> tuple[list[list[int]], list[
                     r = ar.num(0)
                     for k in range(mdp.n_features):
                         r += theta[k] * ar.num(float(mdp.features[s, a, k]))
+                    if mdp.reward_offset is not None:  # a reward every hypothesis gets alike
+                        r += ar.num(float(mdp.reward_offset[s, a]))
                     acts.append(a)
                     rews.append(r)
         actions.append(acts)

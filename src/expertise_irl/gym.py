@@ -129,7 +129,8 @@ class ZoneEnv(gymnasium.Env):
         nxt = int(self.mdp.next_state[s, a])
         if nxt < 0 or self.mdp.terminal[s]:
             return s, 0.0, bool(self.mdp.terminal[s]), self._steps >= self.max_steps, self._info(refused=True)
-        reward = float(self.theta @ self.mdp.features[s, a])
+        reward = float(self.theta @ self.mdp.features[s, a]) + (
+            float(self.mdp.reward_offset[s, a]) if self.mdp.has_offset else 0.0)
         phi = self.mdp.features[s, a].copy()
         self._state = nxt
         self._steps += 1

@@ -8,8 +8,13 @@ Shapes: ``S`` states, ``A`` actions, ``K`` features.
 - optional ``state_xy[S, 2]`` (int): grid cell (x = column, y = row) of each state, and for
   worlds whose state also holds a heading, ``state_heading[S]`` (0 = horizontal, 1 = vertical);
   such an MDP has two states per cell and its archive names the cells ``state_cell``.
+- optional ``reward_offset[S, A]`` (float): a reward every hypothesis gets alike, not weighted
+  by θ (a fixed goal reward, ``goal_reward_mode = "fixed"`` of the grid worlds).
 
-The reward of a hypothesis θ is exactly ``R[s, a] = θ · φ(s, a)``.
+The reward of a hypothesis θ is exactly ``R[s, a] = θ · φ(s, a) + reward_offset[s, a]``
+(:meth:`TabularMDP.reward`; the offset is 0 where none is given). Every solver, likelihood
+and simulator uses this one reward: the planning kernels see the offset as one more feature
+whose weight is fixed at 1 (:meth:`TabularMDP.reward_basis`, :meth:`TabularMDP.reward_weights`).
 """
 
 from __future__ import annotations
@@ -83,6 +88,24 @@ def _checked_tables(src: str, next_state, features, terminal) -> tuple[np.ndarra
     return ns, feats, term
 
 
+def _checked_offset(src: str, offset, avail: np.ndarray) -> np.ndarray | None:
+    """``reward_offset`` as frozen float64 ``[S, A]`` (zero where unavailable), or None."""
+    if offset is None:
+        return None
+    off = np.asarray(offset)
+    if off.shape != avail.shape:
+        raise InputError(f"{src}: reward_offset must have shape [S, A] = [{avail.shape[0]}, "
+                         f"{avail.shape[1]}], got {off.shape}")
+    if not np.issubdtype(off.dtype, np.number) or np.iscomplexobj(off):
+        raise InputError(f"{src}: reward_offset must be real numbers, got dtype {off.dtype}")
+    off = off.astype(np.float64)
+    bad = ~np.isfinite(off) & avail
+    if bad.any():
+        s, a = np.argwhere(bad)[0]
+        raise InputError(f"{src}: reward_offset[{s}, {a}] is {off[s, a]} (must be finite)")
+    return _frozen(np.where(avail, off, 0.0))
+
+
 def _checked_starts(src: str, starts, term: np.ndarray) -> np.ndarray | None:
     """``start_states`` as frozen int64 (None for none), each a non-terminal state."""
     if starts is None:
@@ -136,6 +159,8 @@ class TabularMDP:
         state_heading: optional ``[S]`` int64 heading of each state, 0 = horizontal,
             1 = vertical (needs ``state_xy``); see :mod:`expertise_irl.worlds.warehouse`.
         source: where the MDP came from, used in error messages.
+        reward_offset: optional ``[S, A]`` float64 reward added to θ·φ for every hypothesis
+            alike (see the module docstring); None for none.
     """
 
     next_state: np.ndarray
@@ -147,6 +172,7 @@ class TabularMDP:
     state_xy: np.ndarray | None = None
     source: str = field(default="<mdp>", compare=False)
     state_heading: np.ndarray | None = None
+    reward_offset: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         src = self.source
@@ -174,6 +200,7 @@ class TabularMDP:
         set_(self, "start_states", starts)
         set_(self, "state_xy", xy)
         set_(self, "state_heading", heading)
+        set_(self, "reward_offset", _checked_offset(src, self.reward_offset, ns >= 0))
         unreachable = ~term & ~self._reaches_terminal()
         if unreachable.any():
             s = int(np.flatnonzero(unreachable)[0])
@@ -195,6 +222,32 @@ class TabularMDP:
     @property
     def n_features(self) -> int:
         return int(self.features.shape[2])
+
+    @property
+    def has_offset(self) -> bool:
+        """Whether a reward not weighted by θ is part of every hypothesis' reward."""
+        return self.reward_offset is not None
+
+    def reward(self, theta) -> np.ndarray:
+        """``[..., S, A]`` reward ``θ·φ(s, a) + reward_offset[s, a]`` of ``theta [..., K]``."""
+        r = np.einsum("sak,...k->...sa", self.features, np.asarray(theta, dtype=np.float64))
+        return r + self.reward_offset if self.has_offset else r
+
+    def reward_basis(self) -> np.ndarray:
+        """``[S, A, K']``: the features, with the offset as one more column when there is one.
+
+        With :meth:`reward_weights` the reward is ``basis · weights``: the solvers' one reward.
+        """
+        if not self.has_offset:
+            return self.features
+        return np.concatenate([self.features, self.reward_offset[..., None]], axis=-1)
+
+    def reward_weights(self, theta) -> np.ndarray:
+        """``theta [..., K]`` with the offset's weight 1 appended when there is an offset."""
+        theta = np.asarray(theta, dtype=np.float64)
+        if not self.has_offset:
+            return theta
+        return np.concatenate([theta, np.ones((*theta.shape[:-1], 1))], axis=-1)
 
     @property
     def available(self) -> np.ndarray:
@@ -255,6 +308,8 @@ class TabularMDP:
             arrays["state_heading"] = self.state_heading
         elif self.state_xy is not None:
             arrays["state_xy"] = self.state_xy
+        if self.reward_offset is not None:
+            arrays["reward_offset"] = self.reward_offset
         with open(path, "wb") as fh:
             np.savez_compressed(fh, **arrays)
 
@@ -281,7 +336,7 @@ class TabularMDP:
             raise InputError(f"{path}: archive lacks required array(s) {', '.join(missing)}")
         unknown = set(data) - {
             "next_state", "features", "terminal", "feature_names", "gamma",
-            "start_states", "state_xy", "state_cell", "state_heading",
+            "start_states", "state_xy", "state_cell", "state_heading", "reward_offset",
         }
         if unknown:
             raise InputError(f"{path}: unknown array(s) in archive: {', '.join(sorted(unknown))}")
@@ -304,4 +359,5 @@ class TabularMDP:
             state_xy=data.get("state_cell", data.get("state_xy")),
             source=str(path),
             state_heading=data.get("state_heading"),
+            reward_offset=data.get("reward_offset"),
         )

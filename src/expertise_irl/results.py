@@ -131,6 +131,8 @@ def file_digest(path: str | Path) -> str:
 def map_digest(zone_map) -> str:
     """``sha256:<hex>`` of a map's content (grid and settings), whether from a file or bundled."""
     text = f"{zone_map.to_text()}goal_bonus={zone_map.goal_bonus!r}\ngamma={zone_map.gamma!r}\n"
+    if zone_map.goal_reward_mode != "scaled":  # (scaled maps keep the digests they always had)
+        text += f"goal_reward_mode={zone_map.goal_reward_mode}\n"
     if hasattr(zone_map, "settings_text"):  # a floor plan: its world, cell size and axes too
         text = zone_map.to_text() + zone_map.settings_text()
     return "sha256:" + hashlib.sha256(text.encode()).hexdigest()

@@ -201,17 +201,45 @@ def _note(message: str) -> None:
     err.print(f"note: {message}", markup=False, highlight=False, soft_wrap=True)
 
 
-def _load_mdp(map_spec: str | None, mdp_path: Path | None):
+GoalRewardOption = Annotated[str | None, typer.Option(
+    "--goal-reward", metavar="MODE",
+    help="How the goal pays: scaled (goal_bonus is part of the length feature, weighted by "
+    "θ_length, so it vanishes with it) or fixed (goal_bonus paid outside θ·φ, the same for every "
+    "θ: everyone is drawn to the goal). Default: the map TOML's goal_reward_mode, else scaled.")]
+
+
+def with_goal_reward(zone_map, goal_reward: str | None):
+    """``zone_map`` with ``--goal-reward`` applied when given (a copy; the map is frozen)."""
+    import dataclasses
+
+    from ..worlds.grid import check_goal_reward_mode
+
+    if goal_reward is None:
+        return zone_map
+    mode = check_goal_reward_mode(goal_reward, "--goal-reward")
+    return dataclasses.replace(zone_map, goal_reward_mode=mode)
+
+
+def load_map(map_spec: str, goal_reward: str | None = None):
+    """The map of either world named by ``map_spec``, with ``--goal-reward`` applied when given."""
+    from ..worlds.maps import resolve_world
+
+    return with_goal_reward(resolve_world(map_spec), goal_reward)
+
+
+def _load_mdp(map_spec: str | None, mdp_path: Path | None, goal_reward: str | None = None):
     """(mdp, map or None) from exactly one of MAP or --mdp; MAP is a zone map or, when the TOML
     beside it says ``world = "warehouse"``, a floor plan."""
     from ..mdp import TabularMDP
-    from ..worlds.maps import resolve_world as resolve_map
 
     if (map_spec is None) == (mdp_path is None):
         raise InputError("give exactly one of MAP (a map file or bundled map name) or --mdp FILE.npz")
     if mdp_path is not None:
+        if goal_reward is not None:
+            raise InputError("--goal-reward applies to a MAP; an MDP archive holds its own reward "
+                             "(export it with expertise-irl export-mdp MAP --goal-reward MODE)")
         return TabularMDP.load(mdp_path), None
-    zone_map = resolve_map(map_spec)
+    zone_map = load_map(map_spec, goal_reward)
     return zone_map.to_mdp(), zone_map
 
 

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from ..errors import InputError, plural
 from ._app import (
+    GoalRewardOption,
     ModelOption,
     _check_beta,
     _check_model,
@@ -27,8 +28,10 @@ from ._app import (
     _warn,
     app,
     handles_errors,
+    load_map,
     out,
     prepare_solver,
+    with_goal_reward,
 )
 
 
@@ -51,6 +54,7 @@ def demo(
     beta: Annotated[float | None, typer.Option(
         "--beta", help="The person's expertise β*, one of the paper's 0.01, 0.09, 0.5, 1, 5, 10 "
         "(default: an expert, 0.01 or 0.09, drawn by --seed; --beta 10 is a novice).")] = None,
+    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite this seed's figure and result.")] = False,
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
@@ -60,7 +64,7 @@ def demo(
     from ..worlds.zones import resolve_map
 
     _check_model(model)
-    zone_map = resolve_map(map_spec) if map_spec else None
+    zone_map = with_goal_reward(resolve_map(map_spec), goal_reward) if map_spec else None
     if zone_map is not None:
         zone_map.to_mdp()  # validate the map before any output is started
     png, js = demo_outputs(out_dir, seed, map_spec, beta)  # refuses a β* not among the paper's
@@ -72,8 +76,8 @@ def demo(
     prepare_solver()
     t0 = time.perf_counter()
     with _progress() as bar:
-        run = run_demo(seed, zone_map=zone_map, episodes=episodes, k=k, model=model, beta=beta,
-                       progress=_solve_progress(bar, "solving soft value iteration"))
+        run = run_demo(seed, zone_map=zone_map, goal_reward_mode=goal_reward, episodes=episodes, k=k,
+                       model=model, beta=beta, progress=_solve_progress(bar, "solving soft value iteration"))
     elapsed = time.perf_counter() - t0
     s = run.summary()
     names = run.mdp.feature_names
@@ -100,7 +104,8 @@ def demo(
         settings={"command": "demo", "seed": seed, "map": run.zone_map.name, "episodes": episodes,
                   "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim", "beta": beta,
                   "model": model,
-                  "gamma": run.mdp.gamma, "goal_bonus": run.zone_map.goal_bonus},
+                  "gamma": run.mdp.gamma, "goal_bonus": run.zone_map.goal_bonus,
+                  "goal_reward_mode": run.zone_map.goal_reward_mode},
         data={"episodes": run.trajectories.n_episodes, "actions": len(run.trajectories)},
     )
     doc["truth"] = {"theta": s["theta_true"], "beta": s["beta_true"], "group": s["group_true"],
@@ -117,17 +122,18 @@ def demo(
 def export_mdp(
     map_spec: Annotated[str, typer.Argument(metavar="MAP", help="Map file or bundled map name.")],
     out_path: Annotated[Path, typer.Option("--out", help="Output .npz archive.")],
+    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Compile a text map to the MDP archive (.npz) that every command accepts."""
     from ..results import check_writable
-    from ..worlds.maps import resolve_world
 
     check_writable(out_path, force=force, inputs=_map_files(map_spec))
-    mdp = resolve_world(map_spec).to_mdp()
+    mdp = load_map(map_spec, goal_reward).to_mdp()
     mdp.save(out_path)
     _say(f"wrote {out_path}: {mdp.n_states} states, {mdp.n_actions} actions, "
-              f"features {', '.join(mdp.feature_names)}, gamma {mdp.gamma:g}")
+              f"features {', '.join(mdp.feature_names)}, gamma {mdp.gamma:g}"
+              + (", a fixed goal reward" if mdp.has_offset else ""))
 
 
 @app.command()
@@ -142,6 +148,7 @@ def simulate(
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (actions).")] = 500,
     model: ModelOption = "maxent",
+    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Simulate a person with preferences θ* and expertise β*; write demonstrations CSV.
@@ -154,7 +161,7 @@ def simulate(
     from ..results import check_writable
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), mdp_path])
-    mdp, _ = _load_mdp(map_spec, mdp_path)
+    mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
     th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
     _check_beta(beta)
     _check_model(model)
@@ -205,6 +212,7 @@ def infer(
     chains: Annotated[int, typer.Option(min=1, help="nuts: chains.")] = 4,
     warmup: Annotated[int, typer.Option(min=1, help="nuts: warm-up steps per chain.")] = 500,
     samples: Annotated[int, typer.Option(min=1, help="nuts: draws per chain.")] = 500,
+    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Infer expertise β and preferences θ from demonstrations.
@@ -226,7 +234,7 @@ def infer(
     inputs = [demos, *_map_files(map_spec), mdp_path]
     check_writable(out_path, force=force, inputs=inputs)
     opts = chosen.options_from(ctx.params)
-    mdp, zone_map = _load_mdp(map_spec, mdp_path)
+    mdp, zone_map = _load_mdp(map_spec, mdp_path, goal_reward)
     trajs = read_demos_csv(demos, mdp)
     prepare_solver(measure=chosen.measure_lanes)  # the others solve one hypothesis at a time
     samples_path = samples_path_for(out_path)
@@ -238,11 +246,18 @@ def infer(
                          setup=setup)
     settings = {"command": "infer", "method": method, **_source(map_spec, mdp_path, zone_map, demos),
                 "seed": seed, "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-                "gamma": mdp.gamma}
+                "goal_reward_mode": _goal_reward_mode(mdp, zone_map), "gamma": mdp.gamma}
     doc = document(run, feature_names=mdp.feature_names, settings=settings,
                    data={"episodes": trajs.n_episodes, "actions": len(trajs)}, samples_path=samples_path)
     write_json(out_path, doc)
     _report_result(doc, out_path, len(trajs))
+
+
+def _goal_reward_mode(mdp, zone_map) -> str | None:
+    """The map's goal reward mode; for an MDP archive, ``fixed`` if it holds a reward outside θ·φ."""
+    if zone_map is not None:
+        return zone_map.goal_reward_mode
+    return "fixed" if mdp.has_offset else None
 
 
 def _source(map_spec, mdp_path, zone_map, demos) -> dict:

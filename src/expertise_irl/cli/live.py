@@ -10,6 +10,7 @@ import typer
 
 from ..errors import InputError, os_reason, plural
 from ._app import (
+    GoalRewardOption,
     _load_mdp,
     _note,
     _progress,
@@ -18,6 +19,7 @@ from ._app import (
     _warn,
     app,
     handles_errors,
+    load_map,
     prepare_solver,
 )
 
@@ -49,6 +51,7 @@ def live(
     host: Annotated[str, typer.Option(
         help="Address to bind. The default, 127.0.0.1, is reachable from this machine only.")] = "127.0.0.1",
     seed: Annotated[int, typer.Option(min=0, help="Seed of the start choices (active and random).")] = 0,
+    goal_reward: GoalRewardOption = None,
 ) -> None:
     """Serve a local page where a person drives on the map and the estimate updates after every action.
 
@@ -60,13 +63,13 @@ def live(
     from ..live.server import bind, is_loopback, serve
     from ..live.session import check_out_dir, open_session
     from ..results import map_digest
-    from ..worlds.maps import resolve_world
 
-    zone_map = resolve_world(map_spec)
+    zone_map = load_map(map_spec, goal_reward)
     mdp = zone_map.to_mdp()
     hyp = _hypotheses(thetas, betas, mdp.n_features)
     settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
                 "mdp_digest": map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
+                "goal_reward_mode": zone_map.goal_reward_mode,
                 "thetas": thetas, "betas": betas, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta,
                 "n_hypotheses": len(hyp), "prior": "uniform", "gamma": mdp.gamma, "seed": seed}
     check_out_dir(zone_map, out_dir, settings)  # before the solve: a bad DIR fails at once
@@ -121,6 +124,7 @@ def next_start_cmd(
     target: Annotated[str, typer.Option(
         help="joint: information about (θ, β); beta: about the expertise β only.")] = "joint",
     seed: Annotated[int, typer.Option(min=0, help="Random seed (the answer is a function of it).")] = 0,
+    goal_reward: GoalRewardOption = None,
 ) -> None:
     """Pick the start whose next episode is expected to tell the most about θ and β.
 
@@ -137,7 +141,7 @@ def next_start_cmd(
         raise InputError("--demos is required: the demonstrations observed so far (CSV)")
     if target not in TARGETS:
         raise InputError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
-    mdp, _ = _load_mdp(map_spec, mdp_path)
+    mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
     trajs = read_demos_csv(demos, mdp)
     hyp = _hypotheses(thetas, betas, mdp.n_features)
     prepare_solver()

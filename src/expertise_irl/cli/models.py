@@ -12,6 +12,7 @@ from rich.table import Table
 
 from ..errors import plural
 from ._app import (
+    GoalRewardOption,
     _load_mdp,
     _map_files,
     _note,
@@ -41,6 +42,7 @@ def compare_models_command(
         help="Fraction of the episodes (the last in the file) held out for the predictive check.")] = 0.5,
     tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
     out_path: Annotated[Path | None, typer.Option("--out", help="Also write the comparison as JSON.")] = None,
+    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite --out if it exists.")] = False,
 ) -> None:
     """Compare observation models on the same demonstrations and hypothesis set.
@@ -58,7 +60,7 @@ def compare_models_command(
     names = [m.strip() for m in models.split(",") if m.strip()]
     if out_path is not None:
         check_writable(out_path, force=force, inputs=[demos, *_map_files(map_spec), mdp_path])
-    mdp, _ = _load_mdp(map_spec, mdp_path)
+    mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
     trajs = read_demos_csv(demos, mdp)
     prepare_solver()
     hyp = DiscreteOptions(thetas=thetas, betas=betas).hypotheses(mdp.n_features)

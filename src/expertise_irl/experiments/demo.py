@@ -38,6 +38,7 @@ from ..inference.belief import DiscreteBelief
 from ..mdp import TabularMDP
 from ..metrics import cosine_similarity, expertise_distance, policy_regret
 from ..models import DEFAULT_MODEL
+from ..worlds.grid import DEFAULT_GOAL_REWARD_MODE
 from ..worlds.zones import ZoneMap, generate_map, resolve_map
 
 DEFAULT_EPISODES = 20
@@ -95,6 +96,7 @@ def run_demo(
     progress: Callable[[int, int], None] | None = None,
     model: str = DEFAULT_MODEL,
     beta: float | None = None,
+    goal_reward_mode: str | None = None,
 ) -> DemoRun:
     """Run the demo job deterministically from ``seed`` (no files written).
 
@@ -102,6 +104,7 @@ def run_demo(
     random map generated from the seed. ``model`` is the observation model of the simulated
     person and of the inference (:mod:`expertise_irl.models`). ``beta`` is the person's β*,
     one of the paper's six temperatures; by default it is drawn from ``DEMO_BETAS``.
+    ``goal_reward_mode`` sets how a generated map's goal pays (a given map keeps its own).
     """
     choices = DEMO_BETAS if beta is None else (paper_beta(beta),)
     map_seq, set_seq, truth_seq, sim_seq = np.random.SeedSequence(seed).spawn(4)
@@ -110,7 +113,8 @@ def run_demo(
     if zone_map is None:
         lo, hi = DEMO_MAP_SIZE
         zone_map = generate_map(np.random.default_rng(map_seq), min_size=lo, max_size=hi,
-                                name=f"generated (seed {seed})")
+                                name=f"generated (seed {seed})",
+                                goal_reward_mode=goal_reward_mode or DEFAULT_GOAL_REWARD_MODE)
     mdp = zone_map.to_mdp()
     all_thetas = theta_grid(THETA_PRESETS["paper-sim"], mdp.n_features)
     thetas = sample_thetas(all_thetas, k, np.random.default_rng(set_seq))

@@ -135,6 +135,7 @@ class LogLikelihood:
         self.counts = jnp.asarray(n_blk)
         self._gamma = float(mdp.gamma)
         self._model = model
+        self._offset = mdp.has_offset
         self._fixed_point, self._adjoint = _fixed_point_fn(prep, self._gamma, tol, max_iter, model)
         self._state_rows = jnp.asarray(prep.rows)
         # Compiled as a whole: called eagerly (NumPyro traces its model outside any jit to find
@@ -142,7 +143,10 @@ class LogLikelihood:
         self._call = jax.jit(self._evaluate)
 
     def _weights(self, theta, beta):
-        return (jnp.asarray(theta, jnp.float64) / beta)[:, None]  # [K, 1 lane]
+        theta = jnp.asarray(theta, jnp.float64)
+        if self._offset:  # the fixed reward's weight (see TabularMDP.reward_weights)
+            theta = jnp.concatenate([theta, jnp.ones(1)])
+        return (theta / beta)[:, None]  # [K', 1 lane]
 
     def _from_values(self, w, v, counts):
         """Eq. 11 given the converged values ``v`` (solver layout)."""

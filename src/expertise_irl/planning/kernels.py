@@ -5,10 +5,12 @@ Layout. States are split into two blocks by the parity of their distance to a go
 values (red-black Gauss–Seidel). Hypotheses are the minor axis, in *lanes* (8 float64 on
 an AVX-512 machine; the width is chosen per machine by :mod:`expertise_irl.planning.tuning`), and
 several lane groups are vmapped side by side, which lets XLA spread them over the cores.
-Everything is in scaled units: with weights ``w = θ/β`` the reward is ``r = w·φ`` and
-``V = β v``. The backup itself is the observation model's
-(:func:`expertise_irl.models.backup`, a static argument of every kernel), and :func:`sweep`
-is also the fixed-point map of the differentiable likelihood.
+Everything is in scaled units: with weights ``w = θ'/β`` the reward is ``r = w·φ'`` and
+``V = β v``, where φ' and θ' are the MDP's :meth:`~expertise_irl.mdp.TabularMDP.reward_basis`
+and :meth:`~expertise_irl.mdp.TabularMDP.reward_weights` (the features and θ, plus a fixed
+reward not weighted by θ as one more feature of weight 1 where the MDP has one). The backup
+itself is the observation model's (:func:`expertise_irl.models.backup`, a static argument of
+every kernel), and :func:`sweep` is also the fixed-point map of the differentiable likelihood.
 
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
@@ -120,7 +122,8 @@ def prepare(mdp: TabularMDP, dtype) -> Prepared:
     rows = np.full(mdp.n_states, zero_row, dtype=np.int64)
     for b, m in enumerate(members):
         rows[m] = b * n_block + np.arange(len(m))
-    A, K = mdp.n_actions, mdp.n_features
+    basis = mdp.reward_basis()
+    A, K = mdp.n_actions, basis.shape[2]
     avail = mdp.available
     feats = np.zeros((2, A, n_block, K))
     next_row = np.full((2, A, n_block), zero_row, dtype=np.int64)
@@ -128,7 +131,7 @@ def prepare(mdp: TabularMDP, dtype) -> Prepared:
     ok[:, 0, :] = True  # padding rows: a single zero-reward move to the zero row (value stays 0)
     for b, m in enumerate(members):
         n = len(m)
-        feats[b, :, :n] = np.transpose(mdp.features[m], (1, 0, 2))
+        feats[b, :, :n] = np.transpose(basis[m], (1, 0, 2))
         next_row[b, :, :n] = np.where(avail[m], rows[np.maximum(mdp.next_state[m], 0)], zero_row).T
         ok[b, :, :n] = avail[m].T
     log_n = np.log(ok.sum(axis=1))  # [2, n_block]

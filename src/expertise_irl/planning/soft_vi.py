@@ -100,16 +100,21 @@ def _as_hypotheses(mdp: TabularMDP, theta, beta) -> tuple[np.ndarray, np.ndarray
     if not np.all(np.isfinite(beta)) or np.any(beta <= 0):
         bad = beta[~(np.isfinite(beta) & (beta > 0))][0]
         raise InputError(f"beta must be a finite number > 0, got {bad}")
-    fmax = float(np.abs(mdp.features).max())
     with np.errstate(over="ignore"):
-        rmax = np.abs(theta).sum(axis=1) * fmax / beta
+        rmax = reward_bound(mdp, theta) / beta
     if not np.all(np.isfinite(rmax)) or np.any(rmax > 1e150):
         h = int(np.flatnonzero(~np.isfinite(rmax) | (rmax > 1e150))[0])
         raise InputError(
-            f"hypothesis {h}: reward scale |θ|·|φ|/β = {rmax[h]:.3g} overflows; "
-            "use θ and β of ordinary magnitude (only θ/β matters)"
+            f"hypothesis {h}: reward scale |θ·φ + offset|/β = {rmax[h]:.3g} overflows; "
+            "use θ and β of ordinary magnitude"
         )
     return theta, beta
+
+
+def reward_bound(mdp: TabularMDP, theta: np.ndarray) -> np.ndarray:
+    """``[H]`` a bound on |R(s, a)| of each hypothesis: Σ_k |θ_k| max|φ_k| + max|offset|."""
+    basis = np.abs(mdp.reward_basis()).max(axis=(0, 1))  # [K']
+    return np.abs(mdp.reward_weights(theta)) @ basis
 
 
 def default_max_iter(mdp: TabularMDP, theta: np.ndarray, beta: np.ndarray, tol: float) -> int:
@@ -118,7 +123,7 @@ def default_max_iter(mdp: TabularMDP, theta: np.ndarray, beta: np.ndarray, tol: 
     From v = 0, ||v_{n+1} - v_n|| <= γ^n (max|r| + log A), so n >= log(thresh / (max|r| +
     log A)) / log γ backups always suffice in exact arithmetic; we allow twice that plus 100.
     """
-    rmax = float(np.max(np.abs(mdp.features).sum(-1, keepdims=False).max() * np.abs(theta).max(-1) / beta))
+    rmax = float(np.max(reward_bound(mdp, theta) / beta))
     g = mdp.gamma
     thresh = tol * (1 - g) / g
     scale = rmax + math.log(mdp.n_actions) + 1.0
@@ -261,7 +266,7 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
             raise InputError("v_init must be finite")
         scaled0[:, prep.rows] = v_init / beta[:, None]
         scaled0[:, -1] = 0.0
-    weights = theta / beta[:, None]
+    weights = mdp.reward_weights(theta) / beta[:, None]
     # Hand out the slow (high-β) hypotheses first so the pool does not end on a long tail.
     order = np.argsort(-beta, kind="stable")
     # Batches only exist to report progress; all have one size, so JAX compiles once.

@@ -710,7 +710,7 @@ def best_move(mdp: TabularMDP, theta) -> tuple[float, str | None]:
     if not ok.any():
         return -np.inf, None
     contrib = np.asarray(mdp.features)[ok] * np.asarray(theta, dtype=float)  # [moves, K]
-    r = contrib.sum(axis=1)
+    r = np.asarray(mdp.reward(theta))[ok]
     i = int(np.argmax(r))
     return float(r[i]), str(mdp.feature_names[int(np.argmax(contrib[i]))])
 

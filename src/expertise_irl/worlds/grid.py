@@ -15,6 +15,12 @@ from ..errors import InputError
 from ..mdp import ACTION_DELTAS
 
 DEFAULT_GOAL_BONUS = 10.0
+#: How the goal pays (the ``goal_reward_mode`` of a map's TOML): ``scaled`` adds ``goal_bonus``
+#: to the ``length`` feature on entering a goal, so it is weighted by θ_length (and vanishes
+#: with it); ``fixed`` pays ``goal_bonus`` on entering a goal as a reward outside θ·φ
+#: (:attr:`~expertise_irl.mdp.TabularMDP.reward_offset`), the same for every θ.
+GOAL_REWARD_MODES = ("scaled", "fixed")
+DEFAULT_GOAL_REWARD_MODE = "scaled"
 FREE, OBSTACLE, GOAL, START = ".", "#", "G", "S"
 ROAD_DIRECTIONS = {"^": 0, "v": 1, "<": 2, ">": 3}  # road char -> action index of its direction
 _OPPOSITE = np.array([1, 0, 3, 2])
@@ -29,7 +35,7 @@ class GridMap:
     """Cells of a parsed map, mixed into the frozen dataclasses of both worlds.
 
     A subclass holds ``grid`` (``[height, width]`` legend characters), ``goal_bonus``,
-    ``gamma`` and ``name``, and names itself in messages with ``NOUN``.
+    ``gamma``, ``name`` and ``goal_reward_mode``, and names itself in messages with ``NOUN``.
     """
 
     NOUN = "map"
@@ -37,6 +43,7 @@ class GridMap:
     goal_bonus: float
     gamma: float
     name: str
+    goal_reward_mode: str
 
     def _check_cells(self, g: np.ndarray, legend: tuple[str, ...]) -> None:
         """Refuse a character outside ``legend`` (naming its line and column) and a map without a goal."""
@@ -54,6 +61,16 @@ class GridMap:
             raise InputError(f"{self.name}: goal_bonus must be a finite number")
         if not 0.0 < float(self.gamma) < 1.0:
             raise InputError(f"{self.name}: gamma must be in (0, 1), got {self.gamma}")
+        check_goal_reward_mode(self.goal_reward_mode, self.name)
+
+    def goal_rewards(self, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """For moves into cells ``dst`` ([C, A] characters): what entering a goal adds to the
+        ``length`` feature, and the reward outside θ·φ (None under ``scaled``); see
+        :data:`GOAL_REWARD_MODES`."""
+        enters = np.where(dst == GOAL, self.goal_bonus, 0.0)
+        if self.goal_reward_mode == "fixed":
+            return np.zeros(dst.shape), enters
+        return enters, None
 
     @property
     def height(self) -> int:
@@ -93,6 +110,14 @@ class GridMap:
 
     def to_text(self) -> str:
         return "\n".join("".join(row) for row in self.grid) + "\n"
+
+
+def check_goal_reward_mode(mode, where: str) -> str:
+    """``mode`` if it is one of :data:`GOAL_REWARD_MODES`, else a one-line :class:`InputError`."""
+    if mode not in GOAL_REWARD_MODES:
+        raise InputError(f"{where}: goal_reward_mode must be one of {', '.join(GOAL_REWARD_MODES)}, "
+                         f"got {mode!r}")
+    return mode
 
 
 def road_feature(dst: np.ndarray, off_road: float) -> np.ndarray:

@@ -11,6 +11,7 @@ with a TOML file beside it (same name, ``.toml``)::
     world = "warehouse"   # required: this is what makes the map a floor plan
     cell_size = 0.5       # required: metres per cell
     goal_bonus = 10.0     # optional, added to the length feature on entering a goal
+    goal_reward_mode = "scaled"  # optional: "fixed" pays goal_bonus outside θ·φ instead
     gamma = 0.95          # optional discount factor
     y_up = false          # optional: y of recordings measured up from the bottom edge
 
@@ -47,7 +48,17 @@ import numpy as np
 from ..errors import InputError, read_text
 from ..mdp import DEFAULT_GAMMA, TabularMDP
 from .files import check_goal_settings, check_known, map_file, number_setting, read_toml
-from .grid import DEFAULT_GOAL_BONUS, GOAL, START, GridMap, legend, read_grid, road_feature
+from .grid import (
+    DEFAULT_GOAL_BONUS,
+    DEFAULT_GOAL_REWARD_MODE,
+    GOAL,
+    START,
+    GridMap,
+    check_goal_reward_mode,
+    legend,
+    read_grid,
+    road_feature,
+)
 
 WORLD = "warehouse"
 HORIZONTAL, VERTICAL = 0, 1
@@ -60,7 +71,7 @@ RESTRICTED = "x"
 LEGEND = legend(RESTRICTED)
 DEFAULT_CELL_SIZE = 1.0
 _NUMBER_SETTINGS = ("cell_size", "goal_bonus", "gamma")
-_SETTINGS = ("world", *_NUMBER_SETTINGS, "y_up")
+_SETTINGS = ("world", *_NUMBER_SETTINGS, "y_up", "goal_reward_mode")
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,6 +85,8 @@ class WarehouseMap(GridMap):
         gamma: discount factor of the compiled MDP.
         y_up: recordings measure y up from the bottom edge (default: down from the top).
         name: file name or label, used in messages and figures.
+        goal_reward_mode: ``"scaled"`` (the bonus is part of ``length``) or ``"fixed"`` (a
+            reward outside θ·φ); see :data:`~.grid.GOAL_REWARD_MODES`.
     """
 
     NOUN = "floor plan"
@@ -83,6 +96,7 @@ class WarehouseMap(GridMap):
     gamma: float = DEFAULT_GAMMA
     y_up: bool = False
     name: str = "<floor plan>"
+    goal_reward_mode: str = DEFAULT_GOAL_REWARD_MODE
 
     def __post_init__(self) -> None:
         raw = np.asarray(self.grid)
@@ -141,7 +155,9 @@ class WarehouseMap(GridMap):
     def settings_text(self) -> str:
         """The TOML that goes beside the map's text to reproduce this floor plan."""
         return (f'world = "{WORLD}"\ncell_size = {self.cell_size!r}\ngoal_bonus = {self.goal_bonus!r}\n'
-                f"gamma = {self.gamma!r}\ny_up = {'true' if self.y_up else 'false'}\n")
+                f"gamma = {self.gamma!r}\ny_up = {'true' if self.y_up else 'false'}\n"
+                + (f'goal_reward_mode = "{self.goal_reward_mode}"\n'
+                   if self.goal_reward_mode != DEFAULT_GOAL_REWARD_MODE else ""))
 
     # --------------------------------------------------------------------- MDP
     def to_mdp(self) -> TabularMDP:
@@ -153,10 +169,11 @@ class WarehouseMap(GridMap):
         dest, dst = self.moves()  # [C, A] destination cell (-1 unavailable) and its character
         road = road_feature(dst, off_road=-1.0)
         restricted = -(dst == RESTRICTED).astype(float)
-        bonus = np.where(dst == GOAL, self.goal_bonus, 0.0)
+        bonus, offset = self.goal_rewards(dst)
 
         next_state = np.full((2 * C, 4), -1, dtype=np.int64)
         feats = np.zeros((2 * C, 4, 3))
+        state_offset = None if offset is None else np.repeat(offset, 2, axis=0)  # both headings
         for h in (HORIZONTAL, VERTICAL):
             s = 2 * np.arange(C) + h
             next_state[s] = np.where(dest >= 0, 2 * dest + ACTION_AXIS[None, :], -1)
@@ -176,6 +193,7 @@ class WarehouseMap(GridMap):
             state_xy=self.state_cells(),
             source=self.name,
             state_heading=self.state_headings(),
+            reward_offset=state_offset,
         )
 
     def save_npz(self, path: str | Path) -> None:
@@ -186,10 +204,10 @@ class WarehouseMap(GridMap):
 # ------------------------------------------------------------------- reading
 def parse_floor_plan(text: str, *, name: str = "<floor plan>", cell_size: float = DEFAULT_CELL_SIZE,
                      goal_bonus: float = DEFAULT_GOAL_BONUS, gamma: float = DEFAULT_GAMMA,
-                     y_up: bool = False) -> WarehouseMap:
+                     y_up: bool = False, goal_reward_mode: str = DEFAULT_GOAL_REWARD_MODE) -> WarehouseMap:
     """Parse the text of a floor plan (legend in the module docstring)."""
     return WarehouseMap(read_grid(text, name, LEGEND), cell_size=cell_size, goal_bonus=goal_bonus,
-                        gamma=gamma, y_up=y_up, name=name)
+                        gamma=gamma, y_up=y_up, name=name, goal_reward_mode=goal_reward_mode)
 
 
 def read_floor_plan_settings(path: Path, text: str | None = None) -> dict:
@@ -210,6 +228,8 @@ def read_floor_plan_settings(path: Path, text: str | None = None) -> dict:
         if not isinstance(data["y_up"], bool):
             raise InputError(f"{path}: setting 'y_up' must be true or false, got {data['y_up']!r}")
         out["y_up"] = data["y_up"]
+    if "goal_reward_mode" in data:
+        out["goal_reward_mode"] = check_goal_reward_mode(data["goal_reward_mode"], str(path))
     if not (math.isfinite(out["cell_size"]) and out["cell_size"] > 0):
         raise InputError(f"{path}: cell_size must be a number > 0 (metres), got {out['cell_size']:g}")
     check_goal_settings(path, out)

@@ -11,7 +11,9 @@ unavailable. Zone legend (as in the README)::
 Features of a move from cell c to neighbour c' in direction d (each signed so
 that a larger θ_i means the person cares more):
 
-1. ``length``  −1 per move, plus ``goal_bonus`` on entering a goal.
+1. ``length``  −1 per move, plus ``goal_bonus`` on entering a goal (``goal_reward_mode =
+               "scaled"``, the default); under ``"fixed"`` the goal pays ``goal_bonus`` outside
+               θ·φ instead, the same for every θ (see :data:`~.grid.GOAL_REWARD_MODES`).
 2. ``road``    if c' is a road cell with direction r: +1 when d = r, −1 when d = −r,
                0 across the road.
 3. ``avoid``   −1 when the move enters or exits an avoid zone (exactly one of c, c' is in it).
@@ -19,8 +21,9 @@ that a larger θ_i means the person cares more):
 5. ``traffic`` −1 when the move enters or exits a high-traffic zone.
 
 Optional settings live in a TOML file beside the map (same name, ``.toml``):
-``goal_bonus`` (default 10) and ``gamma`` (default 0.95); ``world = "zones"`` may be
-stated. A TOML saying ``world = "warehouse"`` makes the map a warehouse floor plan
+``goal_bonus`` (default 10), ``goal_reward_mode`` (``"scaled"`` or ``"fixed"``, default
+``"scaled"``) and ``gamma`` (default 0.95); ``world = "zones"`` may be stated. A TOML
+saying ``world = "warehouse"`` makes the map a warehouse floor plan
 (:mod:`expertise_irl.worlds.warehouse`; :func:`expertise_irl.worlds.maps.resolve_world`
 loads either kind).
 """
@@ -36,13 +39,25 @@ import numpy as np
 from ..errors import InputError, read_text
 from ..mdp import ACTION_DELTAS, DEFAULT_GAMMA, TabularMDP
 from .files import check_goal_settings, check_known, map_file, number_setting, read_toml
-from .grid import DEFAULT_GOAL_BONUS, FREE, GOAL, OBSTACLE, START, GridMap, legend, read_grid, road_feature
+from .grid import (
+    DEFAULT_GOAL_BONUS,
+    DEFAULT_GOAL_REWARD_MODE,
+    FREE,
+    GOAL,
+    OBSTACLE,
+    START,
+    GridMap,
+    check_goal_reward_mode,
+    legend,
+    read_grid,
+    road_feature,
+)
 
 FEATURE_NAMES = ("length", "road", "avoid", "slow", "traffic")
 
 AVOID, SLOW, TRAFFIC = "x", "s", "t"
 LEGEND = legend(AVOID, SLOW, TRAFFIC)
-_SETTINGS = ("goal_bonus", "gamma")
+_SETTINGS = ("goal_bonus", "gamma", "goal_reward_mode")
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,15 +66,18 @@ class ZoneMap(GridMap):
 
     Attributes:
         grid: ``[height, width]`` array of single characters.
-        goal_bonus: added to the length feature on entering a goal.
+        goal_bonus: what entering a goal pays (see ``goal_reward_mode``).
         gamma: discount factor of the compiled MDP.
         name: file name or label, used in messages and figures.
+        goal_reward_mode: ``"scaled"`` (the bonus is part of ``length``, weighted by θ_length)
+            or ``"fixed"`` (a reward outside θ·φ); see :data:`~.grid.GOAL_REWARD_MODES`.
     """
 
     grid: np.ndarray
     goal_bonus: float = DEFAULT_GOAL_BONUS
     gamma: float = DEFAULT_GAMMA
     name: str = "<map>"
+    goal_reward_mode: str = DEFAULT_GOAL_REWARD_MODE
 
     def __post_init__(self) -> None:
         raw = np.asarray(self.grid)
@@ -85,7 +103,8 @@ class ZoneMap(GridMap):
         next_state, dst = self.moves()  # [S, A]
         src = g[ys, xs][:, None]  # [S, 1]
         feats = np.zeros((len(cells), 4, 5))
-        feats[..., 0] = -1.0 + np.where(dst == GOAL, self.goal_bonus, 0.0)
+        bonus, offset = self.goal_rewards(dst)
+        feats[..., 0] = -1.0 + bonus
         feats[..., 1] = road_feature(dst, off_road=0.0)
         feats[..., 2] = -((src == AVOID) != (dst == AVOID)).astype(float)
         feats[..., 3] = -np.broadcast_to(src == SLOW, dst.shape).astype(float)
@@ -101,16 +120,18 @@ class ZoneMap(GridMap):
             start_states=starts if starts.size else None,
             state_xy=cells,
             source=self.name,
+            reward_offset=offset,
         )
 
 
 def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOAL_BONUS,
-              gamma: float = DEFAULT_GAMMA) -> ZoneMap:
+              gamma: float = DEFAULT_GAMMA, goal_reward_mode: str = DEFAULT_GOAL_REWARD_MODE) -> ZoneMap:
     """Parse a text map. Blank lines at the start and end are ignored; rows must be equally long."""
-    return ZoneMap(read_grid(text, name, LEGEND), goal_bonus=goal_bonus, gamma=gamma, name=name)
+    return ZoneMap(read_grid(text, name, LEGEND), goal_bonus=goal_bonus, gamma=gamma, name=name,
+                   goal_reward_mode=goal_reward_mode)
 
 
-def read_settings(path: Path) -> dict[str, float]:
+def read_settings(path: Path) -> dict:
     """Read the optional settings TOML; unknown keys or wrong types raise :class:`InputError`."""
     data = read_toml(path)
     out = {}
@@ -121,6 +142,9 @@ def read_settings(path: Path) -> dict[str, float]:
                                  "of the zone world, world = 'zones' or no world key)")
             continue
         check_known(path, key, _SETTINGS)
+        if key == "goal_reward_mode":
+            out[key] = check_goal_reward_mode(value, str(path))
+            continue
         out[key] = number_setting(path, key, value)
     check_goal_settings(path, out)
     return out
@@ -198,6 +222,7 @@ def generate_map(
     goal_bonus: float = DEFAULT_GOAL_BONUS,
     gamma: float = DEFAULT_GAMMA,
     name: str = "<generated>",
+    goal_reward_mode: str = DEFAULT_GOAL_REWARD_MODE,
 ) -> ZoneMap:
     """A random zone map following Sec. V-A, with the goal reachable from every free cell.
 
@@ -248,5 +273,6 @@ def generate_map(
         reach = reachable_from_goals(g)
         g[(g != OBSTACLE) & ~reach] = OBSTACLE
         if reach.sum() >= 0.5 * w * h and reach.sum() >= 2:
-            return ZoneMap(g, goal_bonus=goal_bonus, gamma=gamma, name=name)
+            return ZoneMap(g, goal_bonus=goal_bonus, gamma=gamma, name=name,
+                           goal_reward_mode=goal_reward_mode)
     raise RuntimeError("could not generate a map with at least half the grid passable")

@@ -11,6 +11,17 @@ from ..spec import Column
 FEATURES = ("length", "road", "avoid", "slow", "traffic")
 
 
+def check_goal_reward(mode: str, bonus: float) -> None:
+    """A one-line InputError unless the protocol's goal reward settings are valid."""
+    import math
+
+    from ...worlds.grid import check_goal_reward_mode
+
+    check_goal_reward_mode(mode, "config")
+    if isinstance(bonus, bool) or not isinstance(bonus, int | float) or not math.isfinite(bonus):
+        raise InputError(f"goal_bonus must be a finite number, got {bonus!r}")
+
+
 def check_among(name: str, values, allowed) -> None:
     """A one-line InputError unless ``values`` is non-empty and every one is in ``allowed``."""
     if not values or any(v not in allowed for v in values):
@@ -42,6 +53,9 @@ def truth_columns(beta_doc: str = "β* of the person",
 
 
 SEED = Column("seed", "int64", "the sweep's seed (`--seed`)")
+GOAL_REWARD_MODE = Column("goal_reward_mode", "string",
+                          "the protocol: how the goal pays (config `goal_reward_mode`): `scaled` (part of "
+                          "`length`, weighted by θ_length) or `fixed` (`goal_bonus` outside θ·φ)")
 N_STATES = Column("n_states", "int32", "states of the MDP")
 MAP_COLUMNS = (Column("map_width", "int32", "map width (cells)"),
                Column("map_height", "int32", "map height (cells)"), N_STATES)

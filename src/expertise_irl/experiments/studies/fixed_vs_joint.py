@@ -45,11 +45,13 @@ from .common import (
     BETA_HAT_MEAN,
     EPISODES_SEEN,
     FEATURES,
+    GOAL_REWARD_MODE,
     MAP_COLUMNS,
     METRIC_COLUMNS,
     SEED,
     SET_COMPOSITION,
     TRUTH_PROBABILITY,
+    check_goal_reward,
     composition_values,
     episode_columns,
     feature_columns,
@@ -106,6 +108,8 @@ class ConditionsConfig:
     out_of_set_beta_high: float = 10.0
     model: str = "maxent"  # observation model of the people and of the inference
     conditions: tuple[str, ...] = CONDITIONS  # which conditions in-set people are scored under
+    goal_reward_mode: str = "scaled"  # the protocol: how the goal pays (worlds.grid.GOAL_REWARD_MODES)
+    goal_bonus: float = 10.0  # what entering the goal pays (in `length` when scaled, outside θ·φ when fixed)
 
     def __post_init__(self) -> None:
         bad = [g for g in self.groups if g not in GROUPS]
@@ -120,6 +124,7 @@ class ConditionsConfig:
         if self.episodes < 1 or self.low_episodes < 1:
             raise InputError("episodes must be at least 1")
         check_set_sizes(self.thetas, self.betas, self.ks)
+        check_goal_reward(self.goal_reward_mode, self.goal_bonus)
         from ...models import check_model
 
         check_model(self.model)
@@ -146,11 +151,11 @@ SCALES = {
 
 # ------------------------------------------------------------------------- instances
 @lru_cache(maxsize=8)
-def _map(seed: int, e: int, lo: int, hi: int):
+def _map(seed: int, e: int, lo: int, hi: int, mode: str = "scaled", bonus: float = 10.0):
     from ...worlds.zones import generate_map
 
     zm = generate_map(np.random.default_rng(seed_sequence(seed, (e,))), min_size=lo, max_size=hi,
-                      name=f"environment {e} (seed {seed})")
+                      name=f"environment {e} (seed {seed})", goal_reward_mode=mode, goal_bonus=bonus)
     return zm, zm.to_mdp()
 
 
@@ -173,8 +178,9 @@ def solve_padded(mdp, theta, beta, model: str = "maxent"):
 
 
 def environment(cfg: ConditionsConfig, seed: int, e: int):
-    """``(zone_map, mdp)`` of environment ``e``."""
-    return _map(int(seed), int(e), cfg.map_min_size, cfg.map_max_size)
+    """``(zone_map, mdp)`` of environment ``e`` (the same cells under either protocol)."""
+    return _map(int(seed), int(e), cfg.map_min_size, cfg.map_max_size,
+                getattr(cfg, "goal_reward_mode", "scaled"), float(getattr(cfg, "goal_bonus", 10.0)))
 
 
 def theta_k(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int) -> np.ndarray:
@@ -199,6 +205,11 @@ class Person:
     fixed_beta: float | None
     value: np.ndarray  # [S] soft value of the truth (for regret)
     trajectories: Trajectories
+    random_theta: np.ndarray  # a θ drawn uniformly from the grid: the regret a guess costs
+
+
+#: Child of a person's seed that draws their random θ (spawn keys 0-2 are the person's own streams).
+RANDOM_THETA_CHILD = 99
 
 
 def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str, truth: str) -> Person:
@@ -229,7 +240,10 @@ def person(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int, group: str,
                                  beta_range=(cfg.out_of_set_beta_low, cfg.out_of_set_beta_high))
     value, log_policy = solve_padded(mdp, th, b, cfg.model)
     trajs = simulate_episodes(mdp, log_policy[0], sim_ss, cfg.n_episodes(group, truth), cfg.max_steps)
-    return Person(ident, group, truth, th, b, ft, fb, value[0], trajs)
+    grid = preset_grid(cfg.thetas, mdp.n_features)
+    rng_guess = np.random.default_rng(seed_sequence(seed, (*ident, RANDOM_THETA_CHILD)))
+    guess = grid[int(rng_guess.integers(len(grid)))]
+    return Person(ident, group, truth, th, b, ft, fb, value[0], trajs, guess)
 
 
 def simulate_episodes(mdp, log_policy, seq: np.random.SeedSequence, n: int, max_steps: int) -> Trajectories:
@@ -375,7 +389,11 @@ def score_person(cfg, seed, mdp, hyp, log_policy, p: Person) -> dict[str, np.nda
     col["p_group_true"] = np.array(est["p_group_true"])
     col["truth_probability"] = np.array(est["truth_probability"])
     col["entropy"] = np.array(est["entropy"])
-    col.update(estimate_metrics(mdp, cfg.model, p.theta, p.beta, p.value, theta_hat, col["beta_hat"]))
+    metrics = estimate_metrics(mdp, cfg.model, p.theta, p.beta, p.value,
+                               np.vstack([theta_hat, p.random_theta]), np.r_[col["beta_hat"], p.beta])
+    col.update({name: v[:-1] for name, v in metrics.items()})
+    col["random_theta_regret"] = np.full(m, metrics["policy_regret"][-1])
+    col["goal_reward_mode"] = np.full(m, cfg.goal_reward_mode, dtype=object)
     return col
 
 
@@ -397,6 +415,7 @@ def estimate_metrics(mdp, model: str, theta, beta: float, value, theta_hat,
 # ----------------------------------------------------------------------------- schema
 _ID = [
     SEED,
+    GOAL_REWARD_MODE,
     Column("environment", "int32", "environment index e (its map is seeded by `(e,)`)"),
     Column("run", "int32", "run index r (Θ_k is seeded by `(e, r, k)`)"),
     Column("k", "int32", "number of preference vectors in Θ_k"),
@@ -425,11 +444,13 @@ _ESTIMATES = [
     TRUTH_PROBABILITY,
     Column("entropy", "float64", "posterior entropy (nats)"),
     *METRIC_COLUMNS,
+    Column("random_theta_regret", "float64", "the regret (Eq. 17, at β*) of a θ drawn uniformly from the "
+           "θ grid for this person: what a guess costs, the metric's scale for their β*"),
 ]
 
 STUDY = Study(
     name="conditions",
-    version=3,  # 3: over-relaxed solves (values move within the tolerance)
+    version=4,  # 4: goal_reward_mode (the protocol) and random_theta_regret
     description="Sec. VI-A: Full set vs Fixed θ vs Fixed β, in- and out-of-set truths, metrics per episode",
     config_type=ConditionsConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=(*_ID, *_CONTEXT, *_ESTIMATES),

@@ -49,11 +49,13 @@ import numpy as np
 from ...errors import InputError
 from ..spec import Column, Study, TaskSpec
 from .common import (
+    GOAL_REWARD_MODE,
     MAP_COLUMNS,
     METRIC_COLUMNS,
     SEED,
     SET_COMPOSITION,
     check_among,
+    check_goal_reward,
     composition_values,
     episode_columns,
     feature_columns,
@@ -103,6 +105,8 @@ class OptimisationConfig:
     thetas: str = "paper-sim"
     betas: str = "paper-sim"
     model: str = "maxent"
+    goal_reward_mode: str = "scaled"  # the protocol: how the goal pays (worlds.grid.GOAL_REWARD_MODES)
+    goal_bonus: float = 10.0  # what entering the goal pays (in `length` when scaled, outside θ·φ when fixed)
 
     def __post_init__(self) -> None:
         from ...inference.priors import get_prior
@@ -120,6 +124,7 @@ class OptimisationConfig:
         get_prior(self.prior)
         check_model(self.model)
         check_set_sizes(self.thetas, self.betas, (self.k,))
+        check_goal_reward(self.goal_reward_mode, self.goal_bonus)
 
     @property
     def episodes(self) -> int:
@@ -136,7 +141,9 @@ SCALES = {
                                 max_steps=40),
     "small": OptimisationConfig(instances=4, nuts_chains=2, nuts_warmup=300, nuts_samples=300,
                                 nuts_instances=1),
-    "paper": OptimisationConfig(),
+    # NUTS on the first instance of each map (5 of the 100), 2 chains of 300 + 300: on all 100 with
+    # the defaults (4 chains of 500 + 500) it would take about 12 h on one core of a 2-core laptop.
+    "paper": OptimisationConfig(nuts_chains=2, nuts_warmup=300, nuts_samples=300, nuts_instances=1),
 }
 
 
@@ -156,6 +163,7 @@ class Instance:
     value: np.ndarray  # [S] soft value of the truth (for regret)
     trajectories: Trajectories
     method_seeds: dict[str, int]
+    log_policy: np.ndarray  # [S, A] the truth's policy (for its log-likelihood)
 
 
 @lru_cache(maxsize=4)
@@ -174,7 +182,7 @@ def instance(cfg: OptimisationConfig, seed: int, e: int, i: int) -> Instance:
     trajs = simulate_episodes(mdp, log_policy[0], sim_ss, cfg.episodes, cfg.max_steps)
     seeds = {m: int(ss.generate_state(1)[0]) for m, ss in zip(METHODS, method_ss.spawn(len(METHODS)),
                                                               strict=True)}
-    return Instance((e, i), thetas, theta, beta, value[0], trajs, seeds)
+    return Instance((e, i), thetas, theta, beta, value[0], trajs, seeds, log_policy[0])
 
 
 # ------------------------------------------------------------------------------ tasks
@@ -325,15 +333,33 @@ def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndar
     col["beta_hat"] = beta_hat
     col.update(feature_values("theta_hat", theta_hat))
     col.update(estimate_metrics(mdp, cfg.model, inst.theta, inst.beta, inst.value, theta_hat, beta_hat))
+    col.update(log_likelihoods(cfg, mdp, inst, keys, theta_hat, beta_hat, first))
+    col["goal_reward_mode"] = np.full(L, cfg.goal_reward_mode, dtype=object)
     col["wall_time_s"] = np.array([results[m][n][2] for m, n in keys], dtype=np.float64)
     for name in ("acceptance_rate", "divergences", "max_rhat"):
         col[name] = np.array([results[m][n][3].get(name, np.nan) for m, n in keys], dtype=np.float64)
     return col
 
 
+def log_likelihoods(cfg, mdp, inst: Instance, keys, theta_hat, beta_hat, first) -> dict[str, np.ndarray]:
+    """Eq. 11 of the episodes each row saw, at the truth and at the row's estimate (θ̂, β̂): how
+    far the data pin the truth down (an estimate above the truth is what any fit finds; the size
+    of the gap is the evidence). The estimates are solved in one padded batch."""
+    from ...planning.table_likelihood import log_likelihood
+
+    _, log_pi = solve_padded(mdp, theta_hat, beta_hat, cfg.model)
+    truth = {n: float(log_likelihood(inst.log_policy[None], tr.state, tr.action)[0])
+             for n, tr in first.items()}
+    hat = [float(log_likelihood(log_pi[j][None], first[n].state, first[n].action)[0])
+           for j, (_, n) in enumerate(keys)]
+    return {"log_likelihood_truth": np.array([truth[n] for _, n in keys]),
+            "log_likelihood_hat": np.array(hat)}
+
+
 # ----------------------------------------------------------------------------- schema
 COLUMNS = (
     SEED,
+    GOAL_REWARD_MODE,
     Column("environment", "int32", "environment index e (the `conditions` study's map `(e,)`)"),
     Column("instance", "int32", "instance index i within the environment"),
     Column("method", "string", "`discrete` (Ψ_20), `birl_box` (Algorithm 1 as printed), `birl_simplex`, "
@@ -352,6 +378,8 @@ COLUMNS = (
     *feature_columns("theta_hat", "θ̂ component `{f}` (Algorithm 1 box: unnormalised)"),
     *METRIC_COLUMNS,
     *float_columns({
+        "log_likelihood_truth": "log-likelihood (Eq. 11, nats) of the episodes seen at the truth (θ*, β*)",
+        "log_likelihood_hat": "log-likelihood (Eq. 11, nats) of the episodes seen at the estimate (θ̂, β̂)",
         "wall_time_s": "the method's wall time at this episode count, after a warm-up (discrete: the set's "
                        "solve plus the belief updates)",
         "acceptance_rate": "Algorithm 1's accepted moves / iterations (NaN otherwise)",
@@ -363,7 +391,7 @@ COLUMNS = (
 
 STUDY = Study(
     name="optimisation",
-    version=2,  # 2: over-relaxed solves (values move within the tolerance)
+    version=3,  # 3: goal_reward_mode (the protocol) and the log-likelihoods at the truth and estimate
     description="Sec. VII: Algorithm 1 (as printed), ours (simplex, MAP, NUTS) vs the discrete set Ψ_20",
     config_type=OptimisationConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=COLUMNS,
