@@ -63,9 +63,24 @@ def test_report_from_the_smoke_sweep_has_every_file(smoke):
     for name in ("table1", "table2", "capped", "conditions_means"):
         assert len(pd.read_csv(out / "tables" / f"{name}.csv")) > 0
     claims = pd.read_csv(out / "claims.csv")
-    assert list(claims["id"]) == ["VI-B", "VI-C-cosine", "VI-C-regret", "VI-D-expertise_distance",
-                                  "VI-D-policy_regret", "VI-E-group", "VI-E-regret"]
-    assert set(claims["verdict"]) <= {C.REPRODUCED, C.DIFFERS, C.NOT_REPRODUCED}
+    first = ["VI-B", "VI-C-cosine", "VI-C-regret", "VI-D-expertise_distance", "VI-D-policy_regret",
+             "VI-E-group", "VI-E-regret"]  # the ids the report judged first, kept
+    cells = [f"T{t}-{f}-{m}" for t, fs in ((1, ("theta_k_truth_similarity", "theta_k_diversity",
+                                                  "beta_set_distance")),
+                                           (2, ("episodes", "n_hypotheses", "n_states")))
+             for f in fs for m in ("cosine", "beta", "regret")]
+    assert list(claims["id"]) == [
+        "VI-B", "VI-B-high", "VI-B-medium", "VI-B-low-group-full", "VI-B-low-group-fixed_theta",
+        "VI-B-fig3-full", "VI-B-fig3-fixed_theta", "VI-C-cosine", "VI-C-regret", "VI-C-cosine-high",
+        "VI-C-cosine-medium", "VI-C-cosine-low", "VI-C-cosine-low-lower", "VI-C-regret-high",
+        "VI-C-regret-medium", "VI-C-regret-low", "VI-C-regret-low-near-0", "VI-D-expertise_distance",
+        "VI-D-policy_regret", "VI-D-cosine_similarity", "VI-E-group", "VI-E-regret", "VI-E-cosine-15", *cells]
+    assert set(first) <= set(claims["id"]) and claims["id"].is_unique
+    assert set(claims["verdict"]) <= {C.REPRODUCED, C.DIFFERS, C.NOT_REPRODUCED, C.NO_DATA}
+    # a table cell claim names its table, row and column
+    cell = claims.set_index("id").loc["T1-beta_set_distance-beta"]
+    assert cell["claim"] == "Table I, row “Min. distance between β*_out and B”, column “Expertise distance”"
+    assert cell["paper"] == "0.58†" and cell["rule"] == "table-cell"
     # the header comes from the manifest and the timings
     assert "| study | conditions (version" in md and "| tasks | 4 done / 4 total, 0 failed |" in md
     assert "| rows | 168 |" in md and "Warning" not in md
@@ -210,7 +225,7 @@ def test_vi_d_ratio_verdict_at_the_band_edges(smoke):
     rows.loc[out, "policy_regret"] = np.resize([0.0, 0.0, 0.0, 0.0, 3.0, 6.0], out.sum())
     got = _by_id(cond_report.claims(rows, 3))["VI-D-policy_regret"]
     assert got.value == pytest.approx(6.0) and got.verdict == C.DIFFERS
-    assert got.why.startswith("inconclusive: ") and got.why.endswith("the CI includes 1.")
+    assert got.why.startswith("inconclusive: ") and "the CI includes 1. Beside the pooled ratio" in got.why
 
 
 def test_ratio_verdict_rule():
@@ -269,7 +284,7 @@ def test_ratio_claims_near_1_and_in_the_band():
     assert wrong_size.verdict == C.DIFFERS and not wrong_size.why.startswith("inconclusive")
     ours = C.ratio_claim("x", "s", "c", "p", [1.5, 0.5, 1.6, 0.6, 1.4, 0.7, 1.2, 0.66], ones, "a", "b", "q",
                          1.5, paired=True, who="people", judged=False)
-    assert ours.verdict == C.NOT_JUDGED and ours.why.endswith("the CI includes 1: inconclusive.")
+    assert ours.verdict == C.NOT_JUDGED and "the CI includes 1: inconclusive. Beside" in ours.why
     worse = _ratio(0.8 * ones, ones)
     assert worse.verdict == C.NOT_REPRODUCED and "against the claim" in worse.why
     got = _ratio([2.0, 4.0] * 3, np.ones(6), target=3.0)
@@ -600,7 +615,8 @@ def test_capped_shares_and_the_effect_text_speak_of_the_same_people(smoke):
     last = rows[rows["condition"] == "full"].sort_values("episodes").groupby(cond_report.PERSON).tail(1)
     inset = last[last["truth"] == "in_set"].groupby("group_true")[["n_capped", "episodes"]].sum()
     shares = {g: inset.loc[g, "n_capped"] / inset.loc[g, "episodes"] for g in inset.index}
-    sentence = text.split("For in-set people, ")[1].split(". ")[0]
+    assert set(rows["goal_reward_mode"]) == {"scaled"}  # the protocol: the shares are stated under it
+    sentence = text.split("For in-set people under the `scaled` protocol, ")[1].split(". ")[0]
     for g, v in shares.items():
         assert f"{g} ({v:.0%})" in sentence or f"{g} {v:.0%}" in sentence
         assert f"× ({v:.0%} of episodes capped)" in text.split("per expertise group of the in-set")[1]

@@ -17,10 +17,13 @@ TRUTH_PEOPLE = {"in_set": "in-set people", "out_of_set": "out-of-set people"}
 
 def population(key: dict) -> str:
     """How a sentence names the people of one ``by`` key: "in-set people", "the conditions study's
-    out-of-set people", or "all people" (no key)."""
+    out-of-set people", or "all people" (no key); "..., under the `fixed` protocol" where the key holds
+    ``goal_reward_mode``."""
     source = key.get("source")
     truth = TRUTH_PEOPLE.get(key.get("truth"), "people")
-    return f"the {source} study's {truth}" if source else truth if key.get("truth") else "all people"
+    who = f"the {source} study's {truth}" if source else truth if key.get("truth") else "all people"
+    mode = key.get("goal_reward_mode")
+    return f"{who} under the `{mode}` protocol" if mode else who
 
 
 def cap_text(max_steps, by_value=None) -> str | None:
@@ -52,6 +55,8 @@ def capped_section(last, effect: str, *, by: list[str] | None = None, model: str
     import pandas as pd
 
     by = list(by or [])
+    if "goal_reward_mode" in last.columns and "goal_reward_mode" not in by:
+        by = ["goal_reward_mode", *by]  # the protocol: the shares are stated per protocol
     keys = [*by, "group_true"]
     rows = []
     for key, g in last.groupby(keys, sort=False, observed=True):
@@ -75,12 +80,16 @@ def capped_section(last, effect: str, *, by: list[str] | None = None, model: str
     for key, g in (data.groupby(by, sort=False) if by else [((), data)]):
         key = dict(zip(by, key if isinstance(key, tuple) else (key,), strict=True))
         share = dict(zip(g["group_true"], g["share_capped"], strict=True))
-        pops.append((population(key) if key else everyone, share))
+        named = population(key) if set(key) - {"goal_reward_mode"} else everyone
+        if key.get("goal_reward_mode") and named == everyone:
+            named = f"{everyone} under the `{key['goal_reward_mode']}` protocol"
+        pops.append((named, share))
     text = (f"An episode that hits {f'the cap ({cap})' if cap else 'the cap'} ends without reaching the "
             "goal: it is not a goal-directed path. ")
     text += " ".join(population_sentence(who, share) for who, share in pops) + " "
-    text += MODEL_NOTE + (" " if model in (None, "maxent") else
-                          f" This sweep's people follow the `{model}` model instead. ")
+    fixed = "goal_reward_mode" in last.columns and set(last["goal_reward_mode"]) == {"fixed"}
+    text += FIXED_NOTE if fixed else MODEL_NOTE
+    text += " " if model in (None, "maxent") else f" This sweep's people follow the `{model}` model instead. "
     text += effect
     return Section("Capped episodes", text.strip(), table)
 
@@ -90,6 +99,12 @@ MODEL_NOTE = ("Under the paper's model (maxent) a person is paid for randomness 
               "once reached, so simulated people whose β is large next to their weights prefer to keep "
               "moving and rarely reach the goal (see the README, 'A property of the model worth "
               "knowing').")
+
+
+#: The same under the ``fixed`` protocol, where entering the goal pays outside θ·φ.
+FIXED_NOTE = ("Under the `fixed` protocol entering the goal pays a constant reward outside θ·φ, so every "
+              "person has a reason to finish whatever their θ; the cap is a safeguard, and the shares say "
+              "how often it still ends a walk.")
 
 
 def population_sentence(who: str, share: dict[str, float]) -> str:

@@ -17,6 +17,8 @@ built from the numbers. The verdict rules (also printed in each report):
 - threshold ("≈ 0 by n episodes"): *reproduced* if the mean is at most the threshold in every group;
   *differs* if the mean over all groups is but some group's is not; *not reproduced* otherwise.
 - correlation ("ρ > 0, significant"): as ordering, with Pearson's p in place of Wilcoxon's.
+- table-cell, no-effect, share-gain, difference, every-count, margin (:mod:`.claim_kinds`): see
+  :data:`RULES`.
 
 The why of an inconclusive *differs* starts with "inconclusive:" (:data:`INCONCLUSIVE`).
 
@@ -27,11 +29,13 @@ other tasks shared the machine).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .stats import BOOTSTRAP_SEED, RESAMPLES, fmt, fmt_p, ratio_ci, wilcoxon_p
+from ...errors import plural
+from .ratios import ratio_extras
+from .stats import BOOTSTRAP_SEED, RESAMPLES, cluster_ratio_ci, fmt, fmt_p, ratio_ci, wilcoxon_p
 
 ALPHA = 0.05
 BAND = 1.5
@@ -63,7 +67,14 @@ RULES = {
     "ratio": f"Ratio claims (≈ X×): our ratio of means, with a 95% percentile-bootstrap CI "
              f"({RESAMPLES} resamples, numpy Generator seed {BOOTSTRAP_SEED}; rows that pair, the same "
              "people or instances under both, are resampled as pairs, other rows each side on its "
-             f"own). Reproduced if the ratio lies within [X/{BAND}, {BAND}·X] and the CI excludes 1 on "
+             "own; where the rows carry their map (`environment`) the bootstrap is two-stage: the maps "
+             "are drawn with replacement first, then the people or instances within each drawn map, "
+             "so that people who share a map are not counted as independent). Beside the pooled ratio "
+             "each ratio claim gives the ratio per expertise group of β*, a mix-adjusted ratio "
+             "(unpaired sides: the numerator's people reweighted to the denominator's group mix; "
+             "paired: each group weighted equally) and the ratio of medians; the verdict is on the "
+             "pooled ratio, the paper's. "
+             f"Reproduced if the ratio lies within [X/{BAND}, {BAND}·X] and the CI excludes 1 on "
              "the claimed side; differs if the CI excludes 1 on the claimed side but the ratio is "
              "outside the band (right direction, wrong size), or if the CI includes 1 (inconclusive); "
              "not reproduced if the whole CI lies on the other side of 1 (its nearer bound at 1 or past "
@@ -82,7 +93,44 @@ RULES = {
     "correlation": "Correlation claims (ρ of a given sign): reproduced if Pearson's ρ has the claimed "
                    "sign with p < 0.05; differs if the sign is right but p ≥ 0.05 (inconclusive); not "
                    "reproduced if the sign is wrong.",
+    "table-cell": "Table cells (one claim per cell of Tables I–IV): our Pearson ρ and p over the rows the "
+                  "table names, with n, against the paper's cell. Where the paper's cell has † (p < "
+                  "0.05): reproduced if our ρ has its sign and p < 0.05; differs if the sign is the "
+                  "paper's but p ≥ 0.05 (inconclusive); not reproduced if the sign is the other. Where "
+                  "the paper's cell has no †: reproduced if our p ≥ 0.05, whatever the sign (the sign of "
+                  "a correlation the paper found not significant is not a finding; with a small n this "
+                  "is easy to pass, so read it with n); differs if p < 0.05 with the paper's sign (a "
+                  "correlation the paper did not find significant, in its direction); not reproduced if "
+                  "p < 0.05 with the other sign. A cell our rows cannot compute (a constant factor, a "
+                  "missing column) is n/a (no data).",
+    "no-effect": "Claims that something does not happen (no improvement; not worse): the mean paired "
+                 "difference and a two-sided Wilcoxon signed-rank test. Reproduced if the difference is "
+                 "not in the direction the claim rules out (or is zero); differs if it is but p ≥ 0.05 "
+                 "(inconclusive); not reproduced if it is with p < 0.05.",
+    "share-gain": "Share claims that episodes bring about (most people right after n episodes): each "
+                  "person right or wrong at 1 episode and at n, paired. Reproduced if the share at n "
+                  "is above 1/2 with a one-sided binomial p < 0.05 and above the share at 1 with an "
+                  "exact one-sided McNemar test p < 0.05 (the binomial tail of the people who go from "
+                  "wrong to right among those who change); not reproduced if the share at n is at most "
+                  "1/2 or at most the share at 1; differs otherwise (inconclusive).",
+    "difference": "Unpaired orderings (A below/above B, different people): the difference of means with "
+                  "a 95% percentile-bootstrap CI (two-stage by map where the rows carry `environment`). "
+                  "Reproduced if the difference has the claimed sign and the CI excludes 0; differs if "
+                  "the sign is right but the CI includes 0 (inconclusive); not reproduced if the sign is "
+                  "wrong.",
+    "every-count": "Claims made for every episode count from some count on: judged at each count by the "
+                   "rule named beside this one; the verdict is the worst of them (not reproduced, then "
+                   "differs, then reproduced), so that every count must pass.",
+    "margin": "Margin claims (the change from n to m episodes is within the margin of error at n): per "
+              "expertise group, the change of the mean against the half-width of the 95% Student-t CI "
+              "at n. Reproduced if every group's change is within its half-width; differs if the change "
+              "over all groups is but some group's is not; not reproduced otherwise.",
 }
+
+
+def rule_kinds(rule: str) -> list[str]:
+    """The rules a claim's ``rule`` names (``"every-count:ordering"`` names two)."""
+    return rule.split(":")
 
 
 @dataclass(frozen=True)
@@ -99,9 +147,17 @@ class ClaimResult:
     value: float = float("nan")  # the number the verdict is about (difference, ratio, share, ...)
     ci_low: float = float("nan")  # its 95% CI, where the rule uses one (ratio claims)
     ci_high: float = float("nan")
+    p: float = float("nan")  # the test's p, where the rule uses a test
+    median_ratio: float = float("nan")  # ratio claims: median(num) / median(den)
+    adjusted_ratio: float = float("nan")  # ratio claims: mix-adjusted (see ratios.ratio_extras)
+    group_ratios: str = ""  # ratio claims: the ratio of means per expertise group of β*
+    number: str = ""  # our number in a few characters (for the claim × protocol matrix)
 
     def record(self) -> dict:
         return asdict(self)
+
+    def with_(self, **changes) -> ClaimResult:
+        return replace(self, **changes)
 
 
 #: How the why of a "differs" begins where the rows cannot tell (not significant, a CI that includes 1,
@@ -146,7 +202,7 @@ def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *,
            f"{test}.")
     why = _inconclusive(why, verdict == DIFFERS)
     return ClaimResult(id, section, claim, paper, ours_text + f" (n = {n}, p = {fmt_p(p)})", verdict, why,
-                       "ordering", n, mean_d)
+                       "ordering", n, mean_d, p=p, number=f"{ours_text} (n = {n})")
 
 
 def ratio_band(target: float, orders: float | None = None) -> tuple[float, float]:
@@ -179,23 +235,76 @@ def ratio_verdict(ratio: float, target: float, ci: tuple[float, float],
     return NOT_REPRODUCED if side == "other" else DIFFERS  # includes 1 or undefined: inconclusive
 
 
+def _sides(x, paired: bool):
+    """Labels of both sides: an array (paired: one for both) or a pair (num's, den's)."""
+    if x is None:
+        return None, None
+    return (x, x) if paired else (x[0], x[1])
+
+
+def _keep(mask, *labels):
+    return [None if x is None else np.asarray(x, dtype=object)[mask] for x in labels]
+
+
+def _ratio_ci(num, den, clusters, units, *, paired: bool, few: bool) -> tuple[tuple[float, float], int]:
+    """The ratio's 95% CI and the number of maps it resampled first (0: none, an iid bootstrap)."""
+    if clusters[0] is None:
+        return ((np.nan, np.nan) if few else ratio_ci(num, den, paired=paired)), 0
+    maps = len(set(clusters[0]) | set(clusters[1]))
+    if few:
+        return (np.nan, np.nan), maps
+    ci = cluster_ratio_ci(num, den, clusters if not paired else clusters[0], paired=paired,
+                          units=units if not paired else units[0])
+    return ci, maps
+
+
+def _bootstrap_text(n: int, n_num: int, n_den: int, who: str, *, paired: bool, maps: int) -> str:
+    """How the ratio's CI was drawn, for its why."""
+    if not maps:
+        return (f"paired bootstrap over {n} {who}" if paired
+                else f"bootstrap over {n_num} and {n_den} {who}, each side on its own")
+    first = (f"two-stage cluster bootstrap: the {plural(maps, 'map')} drawn with replacement, then within "
+             "each ")
+    if paired:
+        return first + f"drawn map its pairs ({n} {who} in all)"
+    return first + f"drawn map each side's people on its own ({n_num} and {n_den} {who} in all)"
+
+
+def _ratio_side_text(ci_side: str, target: float, few: bool) -> str:
+    return {"claimed": "the CI excludes 1 on the claimed side",
+            "other": f"the CI lies {'at or below' if target > 1 else 'at or above'} 1, against the claim",
+            "includes": "the CI includes 1",
+            "undefined": (f"no CI from fewer than {MIN_BOOTSTRAP_N} rows" if few
+                          else "the CI is undefined")}[ci_side]
+
+
 def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantity, target,
                 *, paired: bool, who: str, orders: float | None = None, judged: bool = True,
-                withheld: str | None = None) -> ClaimResult:
+                withheld: str | None = None, clusters=None, groups=None, units=None) -> ClaimResult:
     """``mean(num) / mean(den)`` is claimed to be about ``target`` (``10**orders`` if ``orders``).
 
     ``paired``: ``num[i]`` and ``den[i]`` are one unit (``who``, e.g. "in-set people") under both
     sides; pairs with a NaN are dropped. Otherwise the sides are independent samples of ``who``.
     ``judged=False``: one of our methods (verdict :data:`NOT_JUDGED`); ``withheld``: why the rows
-    cannot judge the claim (verdict :data:`WITHHELD`).
+    cannot judge the claim (verdict :data:`WITHHELD`). ``clusters`` (the map of each row), ``units``
+    (the unit of each row within its map) and ``groups`` (β*'s expertise group): an array for both
+    sides where paired, else a pair (num's, den's). With ``clusters`` the CI is the two-stage
+    cluster bootstrap (:func:`.stats.cluster_ratio_ci`); with ``groups`` the claim also gives the
+    ratio per group, mix-adjusted and of medians (:func:`.ratios.ratio_extras`).
     """
     num = np.asarray(num, dtype=np.float64)
     den = np.asarray(den, dtype=np.float64)
+    (cn, cd), (gn, gd), (un, ud) = (_sides(x, paired) for x in (clusters, groups, units))
     if paired:
         keep = np.isfinite(num) & np.isfinite(den)
         num, den = num[keep], den[keep]
+        cn, gn, un = _keep(keep, cn, gn, un)
+        cd, gd, ud = cn, gn, un
     else:
-        num, den = num[np.isfinite(num)], den[np.isfinite(den)]
+        kn, kd = np.isfinite(num), np.isfinite(den)
+        num, den = num[kn], den[kd]
+        cn, gn, un = _keep(kn, cn, gn, un)
+        cd, gd, ud = _keep(kd, cd, gd, ud)
     n = min(len(num), len(den))
     rule = "ratio" if orders is None else "magnitude"
     if n == 0:
@@ -204,12 +313,14 @@ def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantit
     mn, md = float(num.mean()), float(den.mean())
     ratio = mn / md if md != 0 else (np.inf if mn > 0 else np.nan)
     few = n < MIN_BOOTSTRAP_N
-    ci = (np.nan, np.nan) if few else ratio_ci(num, den, paired=paired)
+    ci, maps = _ratio_ci(num, den, (cn, cd), (un, ud), paired=paired, few=few)
+    extras = ratio_extras(num, den, gn, gd, paired=paired)
     lo, hi = ratio_band(target, orders)
     ci_text = (f"[{fmt(ci[0])}, {fmt(ci[1])}]" if np.all(np.isfinite(ci))
                else f"[n/a: n < {MIN_BOOTSTRAP_N}]" if few else "[n/a]")
     counts = f"n = {n} pair{'s' if n != 1 else ''}" if paired else f"n = {len(num)} / {len(den)}"
-    ours = (f"{fmt(ratio)}× {ci_text} ({num_name} {fmt(mn)} / {den_name} {fmt(md)}, {counts})")
+    ours = (f"{fmt(ratio)}× {ci_text} ({num_name} {fmt(mn)} / {den_name} {fmt(md)}, {counts}); "
+            + extras.ours_text())
     if withheld:
         verdict = WITHHELD
     else:
@@ -217,24 +328,21 @@ def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantit
     where = ("inside" if lo <= ratio <= hi else "outside") if np.isfinite(ratio) else "undefined for"
     around = f"{fmt(target)}× ({orders:g} orders of magnitude, log band)" if orders is not None \
         else f"{fmt(target)}×"
-    kind = (f"paired bootstrap over {n} {who}" if paired
-            else f"bootstrap over {len(num)} and {len(den)} {who}, each side on its own")
+    kind = _bootstrap_text(n, len(num), len(den), who, paired=paired, maps=maps)
     ci_side = _ci_side(ci, target)
-    side = {"claimed": "the CI excludes 1 on the claimed side",
-            "other": f"the CI lies {'at or below' if target > 1 else 'at or above'} 1, against the claim",
-            "includes": "the CI includes 1",
-            "undefined": (f"no CI from fewer than {MIN_BOOTSTRAP_N} rows" if few
-                          else "the CI is undefined")}[ci_side]
+    side = _ratio_side_text(ci_side, target, few)
     unsure = bool(np.isfinite(ratio)) and ci_side in ("includes", "undefined")
     if unsure and verdict != DIFFERS:
         side += ": inconclusive"  # a number beside the judged ones, or withheld: said at the end
     why = (f"mean {quantity} is {fmt(mn)} for {num_name} and {fmt(md)} for {den_name}: ratio "
            f"{fmt(ratio)}, 95% CI {ci_text} ({kind}); {where} the band [{fmt(lo)}, {fmt(hi)}] around "
-           f"{around}; {side}.")
+           f"{around}; {side}. " + extras.why_text(num_name, den_name))
     why = _inconclusive(why, unsure and verdict == DIFFERS)
     if withheld:
         why += f" Not judged: {withheld}"
-    return ClaimResult(id, section, claim, paper, ours, verdict, why, rule, n, ratio, ci[0], ci[1])
+    return ClaimResult(id, section, claim, paper, ours, verdict, why, rule, n, ratio, ci[0], ci[1],
+                       median_ratio=extras.medians, adjusted_ratio=extras.adjusted,
+                       group_ratios=extras.group_text(), number=f"{fmt(ratio)}× {ci_text}")
 
 
 def share_claim(id, section, claim, paper, hits, what, *, detail: str = "") -> ClaimResult:
@@ -254,7 +362,8 @@ def share_claim(id, section, claim, paper, hits, what, *, detail: str = "") -> C
     why = (f"{k} of {n} {what}, {share:.0%}{detail}; "
            f"{'above' if share > 0.5 else 'not above'} one half, binomial p = {fmt_p(p)}.")
     why = _inconclusive(why, verdict == DIFFERS)
-    return ClaimResult(id, section, claim, paper, f"{share:.0%} ({k}/{n})", verdict, why, "share", n, share)
+    return ClaimResult(id, section, claim, paper, f"{share:.0%} ({k}/{n})", verdict, why, "share", n, share,
+                       p=p, number=f"{share:.0%} ({k}/{n})")
 
 
 def threshold_claim(id, section, claim, paper, overall, by_group: dict[str, float], threshold, quantity,
@@ -275,7 +384,8 @@ def threshold_claim(id, section, claim, paper, overall, by_group: dict[str, floa
     why = (f"mean {quantity} is {groups} (all {fmt(overall)}); "
            + ("every group is at most " if not over else f"{', '.join(over)} above ")
            + f"the threshold {fmt(threshold)}.")
-    return ClaimResult(id, section, claim, paper, ours, verdict, why, "threshold", n, overall)
+    return ClaimResult(id, section, claim, paper, ours, verdict, why, "threshold", n, overall,
+                       number=f"{fmt(overall)} ({groups})")
 
 
 def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claimed="positive") -> ClaimResult:
@@ -293,7 +403,7 @@ def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claime
            f"({'the claimed' if sign_right else 'not the claimed'} sign), p = {fmt_p(cell.p)}.")
     why = _inconclusive(why, verdict == DIFFERS)
     return ClaimResult(id, section, claim, paper, f"ρ = {cell.text} (n = {cell.n})", verdict, why,
-                       "correlation", cell.n, cell.rho)
+                       "correlation", cell.n, cell.rho, p=cell.p, number=f"ρ = {cell.text} (n = {cell.n})")
 
 
 def claims_frame(claims: list[ClaimResult]):

@@ -6,23 +6,18 @@ import numpy as np
 
 from ...hypotheses import EXPERTISE_GROUPS, GROUP_BOUNDARIES
 from ...hypotheses import GROUP_NAMES as GROUPS
-from . import claims as C
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
+from .conditions_claims import PERSON, V2, claims, table1, table2
 from .parts import Figure, Report
-from .stats import METRIC_AXES, METRIC_RANGE, METRICS, paired
-from .sweep import require_columns
-from .tables import factor_rows, means_table, pearson_table
+from .regret_scale import random_theta_section
+from .stats import METRIC_AXES, METRIC_RANGE, METRICS
+from .sweep import protocol_note, require_columns
+from .tables import means_table
 
-PERSON = ["environment", "run", "k", "group", "truth"]
+__all__ = ["PERSON", "V2", "build", "claims"]
 NEEDED = [*PERSON, "condition", "episodes", "n_capped", "n_states", "n_hypotheses", "group_true",
           "group_hat", *METRICS]
-V2 = {"theta_k_truth_similarity": "Similarity between θ*_out and Θ_k",
-      "theta_k_diversity": "Similarity within Θ_k",
-      "beta_set_distance": "Min. distance between β*_out and B"}
-#: VI-E: the mean regret that counts as "near 0", and the episode counts of the two VI-E claims.
-REGRET_NEAR_ZERO = 0.05
-GROUP_AT, REGRET_AT = 5, 10
 
 
 def _spread_text() -> str:
@@ -152,58 +147,6 @@ def fig7(full_in, n: int) -> Figure:
                   f"are means per expertise group of β*, bands {F.CI_TEXT}.", fig)
 
 
-# -------------------------------------------------------------------------------- claims
-def claims(rows, n: int) -> list[C.ClaimResult]:
-    """The claims of Secs. VI-B to VI-E, from the rows (``n``: the config's episode count)."""
-    inset_n = rows[(rows["truth"] == "in_set") & (rows["episodes"] == n)]
-    out = []
-    p = paired(inset_n, PERSON, "condition", "expertise_distance", "full", "fixed_theta")
-    out.append(C.ordering_claim(
-        "VI-B", "VI-B", f"Full-set β distance below Fixed θ's (in-set, {n} episodes)",
-        "Full below Fixed θ (Fig. 2)", p["full"], p["fixed_theta"], "Full", "Fixed θ", "|β* − β̂|",
-        claimed="below", who="in-set people"))
-    p = paired(inset_n, PERSON, "condition", "cosine_similarity", "full", "fixed_beta")
-    out.append(C.ordering_claim(
-        "VI-C-cosine", "VI-C", f"Full-set cosine above Fixed β's (in-set, {n} episodes)",
-        "Full above Fixed β (Fig. 4)", p["full"], p["fixed_beta"], "Full", "Fixed β", "cosine similarity",
-        claimed="above", who="in-set people"))
-    p = paired(inset_n, PERSON, "condition", "policy_regret", "fixed_beta", "full")
-    out.append(C.ratio_claim(
-        "VI-C-regret", "VI-C", f"Fixed-β regret ≈ 2 orders of magnitude above the Full set's "
-        f"(in-set, {n} episodes)", "≈ 100× (2 orders)", p["fixed_beta"], p["full"], "Fixed β", "Full",
-        "regret", 100.0, orders=2, paired=True, who="in-set people"))
-    kmax = int(rows["k"].max())
-    at_k = rows[(rows["condition"] == "full") & (rows["k"] == kmax) & (rows["episodes"] == n)]
-    inn, outt = at_k[at_k["truth"] == "in_set"], at_k[at_k["truth"] == "out_of_set"]
-    for metric, name, x in (("expertise_distance", "β distance", 3.0), ("policy_regret", "regret", 6.0)):
-        out.append(C.ratio_claim(
-            f"VI-D-{metric}", "VI-D", f"out-of-set {name} ≈ {x:g}× in-set (Full, k = {kmax}, {n} episodes)",
-            f"≈ {x:g}×", outt[metric], inn[metric], "out of set", "in set", name, x, paired=False,
-            who="out-of-set and in-set people"))
-    full_in = rows[(rows["truth"] == "in_set") & (rows["condition"] == "full")]
-    at = min(GROUP_AT, n)
-    g5 = full_in[full_in["episodes"] == at]
-    hits = (g5["group_hat"] == g5["group_true"]).to_numpy()
-    per = ", ".join(f"{g} {np.mean(s['group_hat'] == s['group_true']):.0%}"
-                    for g in _groups(g5) for s in [g5[g5["group_true"] == g]])
-    mass = (f"; by the other reading, posterior mass on β*'s group above 1/2 (p_group_true > 0.5): "
-            f"{np.mean(g5['p_group_true'] > 0.5):.0%}" if "p_group_true" in g5.columns and len(g5) else "")
-    out.append(C.share_claim(
-        "VI-E-group", "VI-E", f"the right expertise group for most in-set people after ≈ {GROUP_AT} "
-        f"episodes (Full; at {at} episodes; the group of the posterior-mean β̂)",
-        "most instances by 5 episodes", hits,
-        f"in-set people have group_hat = group_true at {at} episodes", detail=f" (per group: {per}){mass}"))
-    at = min(REGRET_AT, n)
-    r10 = full_in[full_in["episodes"] == at]
-    by_group = {g: float(r10.loc[r10["group_true"] == g, "policy_regret"].mean()) for g in _groups(r10)}
-    out.append(C.threshold_claim(
-        "VI-E-regret", "VI-E", f"regret ≈ 0 by ≈ {REGRET_AT} episodes in every group (Full, in-set; mean "
-        f"at {at} episodes ≤ {REGRET_NEAR_ZERO:g})", "near 0 at ≈ 10 episodes (Fig. 7)",
-        float(r10["policy_regret"].mean()) if len(r10) else np.nan, by_group, REGRET_NEAR_ZERO,
-        f"regret at {at} episodes", len(r10)))
-    return out
-
-
 # -------------------------------------------------------------------------------- report
 def build(sweep) -> Report:
     require_columns(sweep, NEEDED, f"{sweep.root}/rows")
@@ -215,7 +158,6 @@ def build(sweep) -> Report:
     low = rows[(rows["truth"] == "in_set") & (rows["group_true"] == "low")
                & rows["condition"].isin(["full", "fixed_theta"])]
     at_k = rows[(rows["condition"] == "full") & (rows["k"] == kmax) & (rows["episodes"] == n)]
-    out_n = rows[(rows["truth"] == "out_of_set") & (rows["condition"] == "full") & (rows["episodes"] == n)]
     report = Report("conditions", "Report: `conditions` (paper Secs. VI-A–E)")
     model = sweep.config.get("model", "maxent")
     report.notes.append(
@@ -232,8 +174,10 @@ def build(sweep) -> Report:
         "`expertise_irl.hypotheses.expertise_group`). The claim's why also gives the other reading, "
         "the share of people whose posterior puts more than half its mass on β*'s group "
         "(`p_group_true` > 0.5), not judged.")
+    report.notes.append(protocol_note(sweep))
     report.people = _people(rows)
-    report.claims = claims(rows, n)
+    tables = (table1(rows, n), table2(rows, n))
+    report.claims = claims(rows, n, n_low, tables)
     report.figures = [fig2(inset_n, n)]
     if len(low):
         report.figures.append(fig3(low, n_low))
@@ -241,16 +185,7 @@ def build(sweep) -> Report:
     report.figures += [_fixed_beta_fig(inset_n, n, "cosine_similarity", "fig4", "4", False),
                        _fixed_beta_fig(inset_n, n, "policy_regret", "fig5", "5", log5),
                        fig6(at_k, n, kmax), fig7(full_in, n)]
-    missing = {c: "needs study version 2" for c in V2}
-    report.tables.append(pearson_table(
-        "table1", "Table I: out-of-set metrics vs the composition of the hypothesis set",
-        f"Out-of-set rows (truth = out_of_set), Full set, episodes = {n}, all k ({len(out_n)} rows).",
-        factor_rows(out_n, V2, missing)))
-    report.tables.append(pearson_table(
-        "table2", "Table II: in-set metrics vs episodes, cardinality and states",
-        f"In-set Full-set rows at every episode count 1..{n}, all k ({len(full_in)} rows).",
-        factor_rows(full_in, {"episodes": "No. episodes", "n_hypotheses": "Cardinality of Ψ_k",
-                              "n_states": "No. states"})))
+    report.tables.extend(tables)
     order = {c: i for i, c in enumerate([*F.CONDITION_LABELS, *GROUPS])}
     shown = inset_n.sort_values(["condition", "group_true"], key=lambda s: s.map(order), kind="stable")
     shown = shown.assign(condition=shown["condition"].map(F.CONDITION_LABELS))
@@ -261,6 +196,9 @@ def build(sweep) -> Report:
     last = last_rows(rows[rows["condition"] == "full"], PERSON)
     report.sections.append(capped_section(last, capped_effect(inset_n, last), by=["truth"], model=model,
                                           max_steps=sweep.config.get("max_steps")))
+    scale = random_theta_section(rows, n)
+    if scale is not None:
+        report.sections.append(scale)
     return report
 
 
@@ -286,9 +224,9 @@ def capped_effect(inset_n, last) -> str:
                  f"{parts}. ")
         least = min(ratios, key=lambda g: shares.get(g, 1.0))
         if len(ratios) > 1 and ratios[least] > pooled:
-            text += ("For a person with a large β the soft values are dominated by the entropy term (the "
-                     "walks are close to uniform whatever θ), so a wrong θ costs little regret there: the "
-                     f"capped groups pull the pooled ratio down to {fmt(pooled)}× from the {least} group's "
+            text += ("For a person with a large β the soft values are dominated by the entropy term, so "
+                     "a wrong θ costs little regret there whether or not the walks are capped: the "
+                     f"large-β groups pull the pooled ratio down to {fmt(pooled)}× from the {least} group's "
                      f"{fmt(ratios[least])}× (the paper: ≈ 100×). ")
     text += ("The cap also bears on the low group's β distances (Figs. 2, 3 and 7, claims VI-B and VI-E: "
              "capped walks separate β* = 5 from 10 slowly) and on Table II's states factor (a capped walk "

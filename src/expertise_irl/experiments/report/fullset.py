@@ -20,7 +20,7 @@ from .stats import (
     paired,
     wilcoxon_p,
 )
-from .sweep import require_columns
+from .sweep import protocol_note, require_columns
 from .tables import means_table
 
 SLOT = ["source", "environment", "run", "k", "group", "instance"]
@@ -249,6 +249,7 @@ def build(sweep) -> Report:
     rows = with_truth(sweep.rows)
     at = at_max(rows)
     report = Report("fullset", "Report: `fullset` (beyond the paper: the full paper-sim set)")
+    report.notes.append(protocol_note(sweep))
     report.people = len(rows.drop_duplicates(PERSON))
     tops = source_episodes(rows)
     full = rows.loc[rows["set"] == "full", "n_hypotheses"]

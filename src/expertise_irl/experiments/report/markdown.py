@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .claims import RULES, VERDICT_NOTES, claims_frame
+from .claims import RULES, VERDICT_NOTES, claims_frame, rule_kinds
 from .parts import Report, Table
 from .sweep import workers_text
 
@@ -127,7 +127,7 @@ def render(report: Report, sweep) -> str:
         out.append(md_table(frame) + "\n")
         out.append("Every verdict is computed from the rows by the rule of its kind (numbers in "
                    "[`claims.csv`](claims.csv)):\n")
-        kinds = list(dict.fromkeys(c.rule for c in report.claims))
+        kinds = list(dict.fromkeys(k for c in report.claims for k in rule_kinds(c.rule)))
         out.extend(f"- {RULES[k]}" for k in kinds)
         verdicts = {c.verdict for c in report.claims}
         out.extend(f"- {text}" for v, text in VERDICT_NOTES.items() if v in verdicts)

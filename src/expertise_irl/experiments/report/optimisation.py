@@ -5,18 +5,18 @@ from __future__ import annotations
 import numpy as np
 
 from ...hypotheses import GROUP_NAMES as GROUPS
-from . import claims as C
 from . import figures as F
 from .capped import capped_section, last_rows
+from .identifiability import gap_section
+from .optimisation_claims import JUDGED, KEY, PERSON, RESCALED, claims, table4
 from .parts import Figure, Report, Table
-from .stats import METRIC_AXES, METRIC_RANGE, METRICS, fmt, paired
-from .sweep import require_columns, workers_text
-from .tables import factor_rows, means_table, pearson_cell, pearson_table
+from .stats import METRIC_AXES, METRIC_RANGE, METRICS, fmt
+from .sweep import protocol_note, require_columns, workers_text
+from .tables import means_table, pearson_cell
 
-PERSON = ["environment", "instance"]
-KEY = [*PERSON, "episodes"]
+__all__ = ["JUDGED", "KEY", "PERSON", "RESCALED", "build", "claims", "rescaled_box"]
+
 ORDER = list(F.METHOD_COLORS)  # discrete, birl_box (the paper's), then ours
-JUDGED = "birl_box"
 NEEDED = [*KEY, "method", "n_capped", "mean_episode_length", "n_states", "beta_true", "group_true",
           "prior", "prior_text", "wall_time_s", *METRICS]
 
@@ -73,11 +73,6 @@ def fig9(rows, methods: list[str]) -> Figure:
                   "bands 95% confidence intervals (Student t, clipped to the metric's range).", fig)
 
 
-def _matched(rows, a: str, b: str, column: str):
-    return paired(rows, KEY, "method", column, a, b)
-
-
-RESCALED = f"{JUDGED}_rescaled"
 THETA_HAT = [f"theta_hat_{f}" for f in ("length", "road", "avoid", "slow", "traffic")]
 
 
@@ -92,54 +87,6 @@ def rescaled_box(rows):
     beta = box["beta_hat"] / l1
     return box.assign(method=RESCALED, theta_hat_l1=l1, beta_hat=beta,
                       expertise_distance=(box["beta_true"] - beta).abs())
-
-
-def claims(rows, e: int, methods: list[str], shared: str | None = None) -> list[C.ClaimResult]:
-    """The Sec. VII claims at ``e`` episodes. ``shared``: why the tasks' timings shared the machine
-    (VII-D is then not judged)."""
-    import pandas as pd
-
-    at_e = rows[rows["episodes"] == e]
-    out = []
-    for m in [x for x in methods if x != "discrete"]:
-        judged = m == JUDGED
-        tag = "" if judged else f" [{m}]"
-        p = _matched(at_e, "discrete", m, "expertise_distance")
-        out.append(C.ratio_claim(
-            f"VII-B-beta-{m}", "VII-B", f"β distance 1.5× better than the discrete set (discrete / "
-            f"{m}, {e} episodes){tag}", "≈ 1.5×" if judged else "— (ours)", p["discrete"], p[m], "discrete",
-            m, "|β* − β̂|", 1.5, paired=True, who="instances", judged=judged))
-        if judged:
-            scaled = rescaled_box(at_e)
-            if len(scaled):
-                both = pd.concat([at_e, scaled], ignore_index=True)
-                p = _matched(both, "discrete", RESCALED, "expertise_distance")
-                out.append(C.ratio_claim(
-                    f"VII-B-beta-{RESCALED}", "VII-B", f"β distance 1.5× better than the discrete set "
-                    f"(discrete / {JUDGED} with β̂/‖θ̂‖₁, {e} episodes) [{RESCALED}]", "— (ours)",
-                    p["discrete"], p[RESCALED], "discrete", RESCALED, "|β* − β̂/‖θ̂‖₁|", 1.5, paired=True,
-                    who="instances", judged=False))
-        p = _matched(at_e, "discrete", m, "policy_regret")
-        out.append(C.ratio_claim(
-            f"VII-B-regret-{m}", "VII-B", f"regret 2.5× better than the discrete set (discrete / {m}, "
-            f"{e} episodes){tag}", "≈ 2.5×" if judged else "— (ours)", p["discrete"], p[m], "discrete", m,
-            "regret", 2.5, paired=True, who="instances", judged=judged))
-        p = _matched(at_e, m, "discrete", "cosine_similarity")
-        out.append(C.ordering_claim(
-            f"VII-B-cosine-{m}", "VII-B", f"cosine above the discrete set's ({m} vs discrete, {e} "
-            f"episodes){tag}", "0.90 vs 0.88" if judged else "— (ours)", p[m], p["discrete"], m, "discrete",
-            "cosine similarity", claimed="above", who="instances", judged=judged))
-    if JUDGED in methods and "discrete" in methods:
-        p = _matched(rows, JUDGED, "discrete", "wall_time_s")
-        withheld = None
-        if shared:
-            withheld = (f"{shared} (Sec. VII-D compares the methods on one processor); a sweep run "
-                        "with `--workers 1` can judge it.")
-        out.append(C.ratio_claim(
-            "VII-D", "VII-D", f"discrete ≈ 4× faster than Algorithm 1 ({JUDGED} / discrete mean wall time, "
-            "all episode counts)", "≈ 4×", p[JUDGED], p["discrete"], JUDGED, "discrete", "wall time (s)",
-            4.0, paired=True, who="(environment, instance, episode count) rows", withheld=withheld))
-    return out
 
 
 def scale_note(at_e, e: int) -> str | None:
@@ -270,6 +217,7 @@ def build(sweep) -> Report:
     e = int(rows["episodes"].max())
     at_e = rows[rows["episodes"] == e]
     report = Report("optimisation", "Report: `optimisation` (paper Sec. VII)")
+    report.notes.append(protocol_note(sweep))
     report.people = len(rows.drop_duplicates(PERSON))
     report.notes.append(prior_note(rows, methods))
     report.notes.append(
@@ -287,15 +235,10 @@ def build(sweep) -> Report:
     if note:
         report.notes.append(note)
     shared = sweep.shared_machine()
-    report.claims = claims(rows, e, methods, shared)
+    t4 = table4(rows)
+    report.claims = claims(rows, e, methods, shared, rescaled_box(at_e), t4)
     report.figures = [fig8(at_e, e, methods), fig9(rows, methods)]
-    box = rows[rows["method"] == JUDGED]
-    report.tables.append(pearson_table(
-        "table4", "Table IV: Algorithm 1's metrics vs episodes, states, episode length and β*",
-        f"`{JUDGED}` rows at every episode count ({len(box)} rows).",
-        factor_rows(box, {"episodes": "No. of episodes", "n_states": "No. of states",
-                          "mean_episode_length": "Average episode length",
-                          "beta_true": "True expertise level"})))
+    report.tables.append(t4)
     order = {m: i for i, m in enumerate(methods)}
     shown = at_e.sort_values("method", key=lambda s: s.map(order), kind="stable")
     report.tables.append(means_table("optimisation_means", "Metrics per method",
@@ -309,4 +252,7 @@ def build(sweep) -> Report:
     report.sections.append(capped_section(last, capped_effect(rows, at_e, sweep.config.get("max_steps")),
                                           model=sweep.config.get("model"),
                                           max_steps=sweep.config.get("max_steps"), everyone="the instances"))
+    gap = gap_section(rows)
+    if gap is not None:
+        report.sections.append(gap)
     return report

@@ -95,6 +95,95 @@ def ratio_ci(num, den, *, paired: bool, level: float = 0.95, resamples: int = RE
     return float(lo), float(hi)
 
 
+def _unit_totals(values, clusters, units):
+    """Per (cluster, unit): the sum of ``values`` and the row count; with each unit's cluster."""
+    import pandas as pd
+
+    frame = pd.DataFrame({"v": np.asarray(values, dtype=np.float64), "c": np.asarray(clusters, dtype=object),
+                          "u": np.arange(len(values)) if units is None else np.asarray(units, dtype=object)})
+    agg = frame.groupby(["c", "u"], sort=True, observed=True)["v"].agg(["sum", "count"]).reset_index()
+    return agg["c"].to_numpy(), agg["sum"].to_numpy(np.float64), agg["count"].to_numpy(np.float64)
+
+
+def _draw_units(rng, k, sums, counts):
+    """Each resample's units of one map: the map drawn ``k[b]`` times, each time its units drawn with
+    replacement as many as it holds; returns (B,) sums of values and of rows."""
+    m = len(sums)
+    if m == 0:
+        return np.zeros(len(k)), np.zeros(len(k))
+    w = rng.multinomial(k * m, np.full(m, 1.0 / m))  # (B, m): how often each unit is drawn
+    return w @ sums, w @ counts
+
+
+def cluster_bootstrap_means(num, den, clusters, *, paired: bool, units=None, resamples: int = RESAMPLES,
+                            seed: int = BOOTSTRAP_SEED):
+    """Two-stage cluster bootstrap: ``resamples`` replicates of (mean(num), mean(den)).
+
+    Stage 1 draws as many maps (``clusters``, e.g. ``environment``) as there are, with replacement;
+    stage 2 draws, within each drawn map, as many units as it holds, with replacement (a map drawn
+    twice contributes two independent draws of its units). ``units`` labels the units within a map
+    (default: each row is one; a unit's rows move together, e.g. one instance at several episode
+    counts). ``paired``: ``num[i]`` and ``den[i]`` are one row and ``clusters``/``units`` are arrays
+    for both; otherwise they are pairs ``(for num, for den)`` and the two sides are drawn apart
+    within the same drawn maps (maps are shared, the people on each side are not).
+    """
+    rng = np.random.default_rng(seed)
+    num = np.asarray(num, dtype=np.float64)
+    den = np.asarray(den, dtype=np.float64)
+    if paired:
+        clusters, units = (clusters, clusters), (units, units)
+    elif units is None:
+        units = (None, None)
+    cn, sn, nn = _unit_totals(num, clusters[0], units[0])
+    cd, sd, nd = _unit_totals(den, clusters[1], units[1])
+    labels = sorted(set(cn) | set(cd), key=str)
+    g = len(labels)
+    k_all = rng.multinomial(g, np.full(g, 1.0 / g), size=resamples)  # (B, G): times each map is drawn
+    tot = np.zeros((4, resamples))
+    for j, label in enumerate(labels):
+        k = k_all[:, j]
+        a, b = cn == label, cd == label
+        if paired:  # one unit holds both sides: one draw
+            m = int(a.sum())
+            w = rng.multinomial(k * m, np.full(m, 1.0 / m))
+            tot += np.stack([w @ sn[a], w @ nn[a], w @ sd[b], w @ nd[b]])
+        else:
+            tot += np.stack([*_draw_units(rng, k, sn[a], nn[a]), *_draw_units(rng, k, sd[b], nd[b])])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return tot[0] / tot[1], tot[2] / tot[3]
+
+
+def percentile_ci(replicates, level: float = 0.95) -> tuple[float, float]:
+    """The percentile interval of bootstrap ``replicates``; (NaN, NaN) if any is undefined."""
+    r = np.asarray(replicates, dtype=np.float64)
+    if len(r) == 0 or np.isnan(r).any():
+        return (np.nan, np.nan)
+    lo, hi = np.quantile(r, [(1 - level) / 2, (1 + level) / 2], method="inverted_cdf")
+    return float(lo), float(hi)
+
+
+def cluster_ratio_ci(num, den, clusters, *, paired: bool, units=None, level: float = 0.95,
+                     resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+    """Percentile CI of ``mean(num) / mean(den)`` by the two-stage cluster bootstrap
+    (:func:`cluster_bootstrap_means`)."""
+    if len(num) == 0 or len(den) == 0:
+        return (np.nan, np.nan)
+    a, b = cluster_bootstrap_means(num, den, clusters, paired=paired, units=units, resamples=resamples,
+                                   seed=seed)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return percentile_ci(a / b, level)
+
+
+def cluster_difference_ci(num, den, clusters, *, paired: bool, units=None, level: float = 0.95,
+                          resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+    """Percentile CI of ``mean(num) − mean(den)`` by the two-stage cluster bootstrap."""
+    if len(num) == 0 or len(den) == 0:
+        return (np.nan, np.nan)
+    a, b = cluster_bootstrap_means(num, den, clusters, paired=paired, units=units, resamples=resamples,
+                                   seed=seed)
+    return percentile_ci(a - b, level)
+
+
 def wilcoxon_p(differences) -> float:
     """Two-sided p of the Wilcoxon signed-rank test of paired differences (NaN if all are zero)."""
     from scipy import stats
@@ -128,15 +217,30 @@ def fmt_p(p: float) -> str:
     return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}".replace("-", MINUS)
 
 
-def paired(frame, index: list[str], column: str, values: str, a: str, b: str):
-    """Rows of ``frame`` with ``column`` == a and == b matched on ``index``: DataFrame with columns a, b.
+def paired(frame, index: list[str], column: str, values: str, a: str, b: str, keep=()):
+    """Rows of ``frame`` with ``column`` == a and == b matched on ``index``: DataFrame with columns a, b
+    (and the columns ``keep``, each key's first value, e.g. ``group_true``), indexed by ``index``.
 
     Only keys present in both are kept (a person scored under both conditions).
     """
+    import pandas as pd
+
+    if a == b:
+        return pd.DataFrame(columns=[a, *keep])
     sub = frame[frame[column].isin([a, b])]
     wide = sub.pivot_table(index=index, columns=column, values=values, aggfunc="first", observed=True)
     if a not in wide.columns or b not in wide.columns:
-        import pandas as pd
+        return pd.DataFrame(columns=[a, b, *keep])
+    out = wide[[a, b]].dropna()
+    out.columns = list(out.columns)
+    if keep:
+        extra = sub.groupby(index, observed=True)[list(keep)].first()
+        out = out.join(extra)
+    return out
 
-        return pd.DataFrame(columns=[a, b])
-    return wide[[a, b]].dropna()
+
+def level(frame, name: str):
+    """The values of ``name`` for each row of ``frame``: an index level or a column."""
+    if name in getattr(frame.index, "names", ()):
+        return frame.index.get_level_values(name).to_numpy()
+    return frame[name].to_numpy()

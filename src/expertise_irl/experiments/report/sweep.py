@@ -83,6 +83,36 @@ class Sweep:
         return out
 
 
+#: The protocol of rows and configs written before ``goal_reward_mode`` existed.
+DEFAULT_PROTOCOL = "scaled"
+#: What each protocol (``goal_reward_mode``) means, for a report's notes.
+PROTOCOLS = {"scaled": "the goal bonus is part of the `length` feature, weighted by θ_length (it vanishes "
+                       "with θ_length, and only θ/β enters the likelihood)",
+             "fixed": "a constant terminal reward for entering the goal, outside θ·φ (people have a reason "
+                      "to finish whatever their θ; π depends on θ and β apart)"}
+
+
+def protocol_of(rows, config: dict | None = None) -> str:
+    """The protocol of a sweep: its rows' ``goal_reward_mode`` (one value, or the values joined by "+"),
+    else its config's, else :data:`DEFAULT_PROTOCOL` (rows written before the column existed)."""
+    if rows is not None and "goal_reward_mode" in getattr(rows, "columns", ()):
+        modes = sorted({str(v) for v in rows["goal_reward_mode"].dropna()})
+        if modes:
+            return "+".join(modes)
+    return str((config or {}).get("goal_reward_mode") or DEFAULT_PROTOCOL)
+
+
+def protocol_note(sweep) -> str:
+    """One paragraph: the sweep's protocol and what it means."""
+    mode = protocol_of(sweep.rows, sweep.config)
+    bonus = sweep.config.get("goal_bonus")
+    where = "its rows' `goal_reward_mode`" if "goal_reward_mode" in sweep.rows.columns else (
+        "its config" if "goal_reward_mode" in sweep.config else "the default: rows and config written before "
+        "the field existed")
+    return (f"Protocol (goal reward): `{mode}` (from {where}): {PROTOCOLS.get(mode, 'see the config')}"
+            + (f"; goal bonus {bonus:g}." if isinstance(bonus, int | float) else "."))
+
+
 def workers_text(runs) -> str:
     """``"a run with 2 local workers and 3 tasks to run; a run on the Dask scheduler tcp://..."``"""
     parts = []

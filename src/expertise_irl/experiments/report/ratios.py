@@ -1,0 +1,100 @@
+"""What a ratio of means hides: the ratio per expertise group, mix-adjusted, of medians, and how much
+of the numerator's mean one unit supplies (beside the pooled ratio a ratio claim is judged on)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...hypotheses import GROUP_NAMES
+from .stats import fmt
+
+
+@dataclass(frozen=True)
+class RatioExtras:
+    """``by_group``: {group: (ratio of means, n num, n den)}; ``adjusted``: the mix-adjusted ratio and
+    ``adjusted_how`` the sentence that says how; ``medians``: median(num) / median(den); ``top_share``:
+    the largest single value's share of the numerator's sum."""
+
+    by_group: dict
+    adjusted: float
+    adjusted_how: str
+    medians: float
+    median_num: float
+    median_den: float
+    top_share: float
+
+    def group_text(self) -> str:
+        """``"high 69×, medium 6.1×, low 1.8×"`` (empty where there are no groups)."""
+        return ", ".join(f"{g} {fmt(r)}×" for g, (r, _, _) in self.by_group.items())
+
+    def ours_text(self) -> str:
+        """The short form for a claim's "ours"."""
+        parts = [f"per group {self.group_text()}"] if self.by_group else []
+        if np.isfinite(self.adjusted):
+            parts.append(f"mix-adjusted {fmt(self.adjusted)}×")
+        parts.append(f"ratio of medians {fmt(self.medians)}×")
+        return "; ".join(parts)
+
+    def why_text(self, num_name: str, den_name: str) -> str:
+        """The sentence for a claim's why."""
+        out = "Beside the pooled ratio: "
+        if self.by_group:
+            groups = ", ".join(f"{g} {fmt(r)}× (n = {a} / {b})" if a != b else f"{g} {fmt(r)}× (n = {a})"
+                               for g, (r, a, b) in self.by_group.items())
+            out += f"per expertise group of β* {groups}; "
+        if np.isfinite(self.adjusted):
+            out += f"mix-adjusted {fmt(self.adjusted)}× ({self.adjusted_how}); "
+        out += (f"ratio of medians {fmt(self.medians)}× ({num_name} {fmt(self.median_num)} / {den_name} "
+                f"{fmt(self.median_den)}); the largest single {num_name} value is "
+                f"{self.top_share:.0%} of the {num_name} sum.")
+        return out
+
+
+def _ratio(a: float, b: float) -> float:
+    if not (np.isfinite(a) and np.isfinite(b)):
+        return float("nan")
+    return a / b if b != 0 else (float("inf") if a > 0 else float("nan"))
+
+
+def _order(groups) -> list[str]:
+    present = {str(g) for g in groups}
+    return [g for g in GROUP_NAMES if g in present] + sorted(present - set(GROUP_NAMES))
+
+
+def ratio_extras(num, den, groups_num=None, groups_den=None, *, paired: bool) -> RatioExtras:
+    """The numbers beside a pooled ratio of means (``num``, ``den`` without NaNs).
+
+    Paired (the same units on both sides): the mix is the same on both sides, so the mix-adjusted
+    ratio is stratified with equal weight per group, sum_g mean(num_g) / sum_g mean(den_g), the
+    ratio a sample with as many units in each group would give. Unpaired: ``num``'s units are
+    reweighted to ``den``'s group mix, sum_g w_g mean(num_g) / sum_g w_g mean(den_g) with w_g the
+    share of ``den``'s units in group g, over the groups both sides hold.
+    """
+    num = np.asarray(num, dtype=np.float64)
+    den = np.asarray(den, dtype=np.float64)
+    med_n, med_d = (float(np.median(x)) if len(x) else np.nan for x in (num, den))
+    total = float(num.sum())
+    top = float(num.max() / total) if len(num) and total > 0 else float("nan")
+    by_group, adjusted, how = {}, float("nan"), ""
+    if groups_num is not None and len(num) and len(den):
+        gn = np.asarray(groups_num, dtype=str)
+        gd = gn if paired else np.asarray(groups_den, dtype=str)
+        for g in _order([*gn, *gd]):
+            a, b = num[gn == g], den[gd == g]
+            by_group[g] = (_ratio(a.mean(), b.mean()) if len(a) and len(b) else float("nan"), len(a), len(b))
+        both = [g for g in by_group if (gn == g).any() and (gd == g).any()]
+        if paired:
+            w = {g: 1.0 / len(both) for g in both}
+            how = "each expertise group weighted equally"
+        else:
+            w = {g: float((gd == g).sum()) for g in both}
+            s = sum(w.values())
+            w = {g: v / s for g, v in w.items()} if s else {}
+            mix = ", ".join(f"{g} {v:.0%}" for g, v in w.items())
+            how = f"the numerator's units reweighted to the denominator's group mix ({mix})"
+        if w:
+            adjusted = _ratio(sum(w[g] * num[gn == g].mean() for g in w),
+                              sum(w[g] * den[gd == g].mean() for g in w))
+    return RatioExtras(by_group, adjusted, how, _ratio(med_n, med_d), med_n, med_d, top)
