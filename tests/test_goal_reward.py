@@ -5,11 +5,13 @@ the gym; the protocols differ exactly where the issue says they must."""
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from cli_helpers import assert_input_error, invoke, ok
 from reference_solver import soft_value_iteration
 
 from expertise_irl.demos.simulation import capped_flags, simulate
@@ -185,3 +187,54 @@ def test_archive_keeps_the_offset(tmp_path, crossroads):
     np.savez(tmp_path / "bad.npz", **bad)
     with pytest.raises(InputError, match=r"bad\.npz: reward_offset must have shape \[S, A\]"):
         TabularMDP.load(tmp_path / "bad.npz")
+
+
+# ------------------------------------------------------------------------ the command line
+def test_goal_reward_option_reaches_archive_simulation_and_result(tmp_path):
+    npz = tmp_path / "fixed.npz"
+    ok(invoke("export-mdp", "corridor", "--out", npz, "--goal-reward", "fixed"))
+    mdp = TabularMDP.load(npz)
+    want = fixed(load_bundled("corridor")).to_mdp()
+    np.testing.assert_array_equal(mdp.reward_offset, want.reward_offset)
+    demos = tmp_path / "d.csv"
+    ok(invoke("simulate", "corridor", "--goal-reward", "fixed", "--theta", "0,1,0,0,0", "--beta", "0.05",
+              "--episodes", "3", "--out", demos))
+    out = tmp_path / "r.json"
+    ok(invoke("infer", "corridor", "--goal-reward", "fixed", "--demos", demos, "--out", out,
+              "--thetas", "paper-real", "--betas", "paper-real"))
+    doc = json.loads(out.read_text())
+    assert doc["settings"]["goal_reward_mode"] == "fixed"
+    # the same walks read under the archive that holds the offset give the same posterior
+    out2 = tmp_path / "r2.json"
+    ok(invoke("infer", "--mdp", npz, "--demos", demos, "--out", out2, "--thetas", "paper-real",
+              "--betas", "paper-real"))
+    doc2 = json.loads(out2.read_text())
+    assert doc2["settings"]["goal_reward_mode"] == "fixed"
+    assert doc2["beta_hat"] == pytest.approx(doc["beta_hat"], rel=1e-9)
+
+
+def test_goal_reward_option_errors(tmp_path):
+    corridor_npz = tmp_path / "corridor.npz"
+    load_bundled("corridor").to_mdp().save(corridor_npz)
+    assert_input_error(invoke("export-mdp", "corridor", "--out", tmp_path / "m.npz", "--goal-reward", "both"),
+                       "--goal-reward: goal_reward_mode must be one of scaled, fixed, got 'both'")
+    assert_input_error(invoke("simulate", "--mdp", corridor_npz, "--goal-reward", "fixed", "--theta",
+                              "1,0,0,0,0", "--beta", "1", "--out", tmp_path / "d.csv"),
+                       "--goal-reward applies to a MAP")
+
+
+def test_study_rows_record_the_protocol():
+    from expertise_irl.experiments.studies.fixed_vs_joint import SCALES, run_task, tasks
+
+    for mode in ("scaled", "fixed"):
+        cfg = dataclasses.replace(SCALES["smoke"], goal_reward_mode=mode)
+        cols, _ = run_task(cfg, 0, tasks(cfg)[0].params)
+        assert set(cols["goal_reward_mode"]) == {mode}
+        regret = cols["random_theta_regret"]
+        assert np.all(np.isfinite(regret)) and np.all(regret >= 0)
+        # one guess per person: constant over their rows, different between people
+        person = [tuple(x) for x in zip(cols["group"], cols["truth"], strict=True)]
+        for p in set(person):
+            assert len(set(regret[[q == p for q in person]])) == 1
+    with pytest.raises(InputError, match="goal_reward_mode must be one of scaled, fixed"):
+        dataclasses.replace(SCALES["smoke"], goal_reward_mode="both")
