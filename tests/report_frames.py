@@ -179,3 +179,51 @@ def fullset_rows(seed: int = 0, truth_column: bool = True) -> pd.DataFrame:
                     "truth_probability": 0.4 if t == "in_set" else np.nan,
                     "set_solve_time_s": 12.0 + e})
     return pd.DataFrame(recs)
+
+
+def conditions_rows(seed: int = 0, environments: int = 3, runs: int = 2, ks=(5, 10), episodes: int = 20,
+                    low_episodes: int = 40) -> pd.DataFrame:
+    """Rows of the ``conditions`` contract over several maps: in-set people under Full, Fixed θ and
+    Fixed β (low-expertise ones up to ``low_episodes``), out-of-set people under Full. Full is better
+    than both fixed conditions and improves with episodes; Fixed θ's β distance does not; every
+    in-set person's group is right from 3 episodes on and wrong at 1 for every other person."""
+    rng = np.random.default_rng(seed)
+    recs = []
+    for e in range(environments):
+        for r in range(runs):
+            for k in ks:
+                for g in ("high", "medium", "low"):
+                    for t in ("in_set", "out_of_set"):
+                        recs += _person_rows(rng, e, r, k, g, t, episodes, low_episodes)
+    return pd.DataFrame(recs)
+
+
+def _person_rows(rng, e, r, k, g, t, episodes, low_episodes) -> list[dict]:
+    beta = float(rng.choice(GROUP_BETAS[g])) if t == "in_set" else float(rng.uniform(0.01, 10))
+    theta = _theta(rng, 1)[0]
+    top = low_episodes if (t == "in_set" and g == "low") else episodes
+    wrong_at_1 = bool(rng.random() < 0.5)
+    base = {"seed": 0, "environment": e, "run": r, "k": k, "group": g, "truth": t, "method": "discrete",
+            "map_width": 10, "map_height": 10, "n_states": 80 + 10 * e, "n_hypotheses": 6 * k,
+            "beta_true": beta, "group_true": group_of(beta),
+            **{f"theta_true_{f}": theta[j] for j, f in enumerate(FEATURES)},
+            "theta_k_truth_similarity": rng.random(), "theta_k_diversity": rng.random(),
+            "beta_set_distance": rng.random(), "entropy": 1.0, "p_group_true": 0.9,
+            "truth_probability": 0.5 if t == "in_set" else np.nan}
+    gap = 3.0 if t == "out_of_set" else 1.0
+    out = []
+    for c in (("full", "fixed_theta", "fixed_beta") if t == "in_set" else ("full",)):
+        noise = rng.random()
+        for n in range(1, top + 1):
+            full = c == "full"
+            right = not (n == 1 and wrong_at_1) and (full or n >= 3)
+            out.append({**base, "condition": c, "episodes": n, "n_pairs": 30 * n,
+                        "n_capped": n if beta > 0.5 else 0, "fixed_beta": np.nan,
+                        **{f"fixed_theta_{f}": np.nan for f in FEATURES}, "beta_hat": beta,
+                        "group_hat": group_of(beta) if right else "nobody",
+                        **{f"theta_hat_{f}": theta[j] for j, f in enumerate(FEATURES)},
+                        "expertise_distance": (gap * (0.5 + noise) / n if c != "fixed_theta"
+                                               else 2.0 + 0.1 * noise),
+                        "cosine_similarity": 1 - gap * 0.05 * noise - (0.2 if c == "fixed_beta" else 0),
+                        "policy_regret": gap * (0.01 + 0.01 * noise) / n * (10 if c == "fixed_beta" else 1)})
+    return out
