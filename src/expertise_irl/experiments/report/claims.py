@@ -7,10 +7,12 @@ built from the numbers. The verdict rules (also printed in each report):
   two-sided Wilcoxon signed-rank test gives p < 0.05; *differs* if the sign is right but p ≥ 0.05
   (inconclusive); *not reproduced* if the sign is wrong (or every difference is zero).
 - ratio ("≈ X×"): the ratio of means with a 95% percentile-bootstrap CI (paired where the rows
-  pair). *reproduced* if the ratio is within [X/1.5, 1.5·X] and the CI excludes 1 on the claimed
-  side; *differs* if the CI excludes 1 on the claimed side but the ratio is outside the band (right
-  direction, wrong size), or if the CI includes 1 or cannot be computed (inconclusive); *not
-  reproduced* if the whole CI lies on the other side of 1.
+  pair; two-stage, maps then the people or instances within them, where the rows carry their map),
+  beside the per-group, mix-adjusted and median ratios (:mod:`.ratios`). *reproduced* if the ratio
+  is within [X/1.5, 1.5·X] and the CI excludes 1 on the claimed side; *differs* if the CI excludes
+  1 on the claimed side but the ratio is outside the band (right direction, wrong size), or if the
+  CI includes 1 or cannot be computed (inconclusive); *not reproduced* if the whole CI lies on the
+  other side of 1.
   "≈ m orders of magnitude" uses the log band [10^(m−0.5), 10^(m+0.5)] instead.
 - share ("most"): *reproduced* if the share is above 1/2 and a one-sided binomial test against 1/2
   gives p < 0.05; *differs* if above 1/2 with p ≥ 0.05 (inconclusive); *not reproduced* if at most 1/2.
