@@ -238,3 +238,15 @@ def test_study_rows_record_the_protocol():
             assert len(set(regret[[q == p for q in person]])) == 1
     with pytest.raises(InputError, match="goal_reward_mode must be one of scaled, fixed"):
         dataclasses.replace(SCALES["smoke"], goal_reward_mode="both")
+
+
+def test_a_user_study_keeps_the_floor_plans_goal_reward():
+    """A study's engine rebuilds each floor plan from the study data: the protocol travels too."""
+    from expertise_irl.userstudy.run import _plan_entry
+    from expertise_irl.userstudy.study import _plan_mdp
+
+    plan = parse_floor_plan("S..G\n.x..\n", name="p", goal_reward_mode="fixed", goal_bonus=3.0)
+    text = json.dumps({"maps": {"k": _plan_entry(plan)}})
+    rebuilt, mdp = _plan_mdp(text, "k")
+    assert rebuilt.goal_reward_mode == "fixed"
+    np.testing.assert_array_equal(mdp.reward_offset, plan.to_mdp().reward_offset)

@@ -3,7 +3,8 @@
 :class:`ZoneEnv` is the grid of a :class:`~expertise_irl.worlds.zones.ZoneMap`:
 observations are state indices (``Discrete(S)``), actions the four moves
 (``Discrete(4)``: up, down, left, right), the reward of a move is ``θ · φ(s, a)``
-with the map's five features, and an episode terminates on entering the goal
+with the map's five features (plus the goal reward on entering the goal under
+``goal_reward_mode = "fixed"``: ``TabularMDP.reward``), and an episode terminates on entering the goal
 (or is truncated after ``max_steps`` moves). A move into a wall or off the map
 leaves the state unchanged, gives reward 0 and ``info["refused"] = True``; it is
 not a transition of the MDP, so :class:`RecordTrajectories` does not record it.

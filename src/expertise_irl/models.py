@@ -1,6 +1,7 @@
 """Observation models: how a person with preferences θ and expertise β picks actions.
 
-Each model is one Bellman backup in scaled units (``w = θ/β``, ``q = w·φ + γ v[next]``,
+Each model is one Bellman backup in scaled units (``w = θ'/β``, ``q = w·φ' + γ v[next]`` with
+φ', θ' the MDP's reward basis and weights,
 ``V = β v``); the batched solver (:mod:`expertise_irl.planning.kernels`), the differentiable
 likelihood (:mod:`expertise_irl.planning.differentiable`) and the simulator all call
 :func:`backup`, so a new model is one branch here.

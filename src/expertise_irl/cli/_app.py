@@ -243,7 +243,9 @@ def _load_mdp(map_spec: str | None, mdp_path: Path | None, goal_reward: str | No
     return zone_map.to_mdp(), zone_map
 
 
-def _parse_theta(spec: str, n_features: int, names) -> np.ndarray:
+def _parse_theta(spec: str, n_features: int, names, *, fixed_reward: bool = False) -> np.ndarray:
+    """``--theta`` scaled to unit l1 norm; on an MDP with a fixed reward (``fixed_reward``) that
+    rescaling makes another person, so a θ that needed it is named in a warning."""
     from ..hypotheses import normalize_theta
 
     try:
@@ -254,7 +256,11 @@ def _parse_theta(spec: str, n_features: int, names) -> np.ndarray:
         raise InputError(
             f"--theta has {len(values)} values but the MDP has {n_features} features ({', '.join(names)})"
         )
-    return normalize_theta(values, what="--theta")
+    theta = normalize_theta(values, what="--theta")
+    if fixed_reward and not np.allclose(theta, values):
+        _warn(f"--theta {spec} was scaled to unit l1 norm ({', '.join(f'{x:.4g}' for x in theta)}); "
+              "with a fixed goal reward the scale of θ matters, so give θ with components summing to 1")
+    return theta
 
 
 def _check_beta(beta: float, what: str = "--beta") -> float:

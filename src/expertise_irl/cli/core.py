@@ -61,13 +61,17 @@ def demo(
     from ..experiments.demo import demo_outputs, run_demo
     from ..plots.maps import render_demo_png
     from ..results import check_writable, discrete_result, write_json
+    from ..worlds.grid import check_goal_reward_mode
     from ..worlds.zones import resolve_map
 
     _check_model(model)
+    if goal_reward is not None:
+        check_goal_reward_mode(goal_reward, "--goal-reward")
     zone_map = with_goal_reward(resolve_map(map_spec), goal_reward) if map_spec else None
     if zone_map is not None:
         zone_map.to_mdp()  # validate the map before any output is started
-    png, js = demo_outputs(out_dir, seed, map_spec, beta)  # refuses a β* not among the paper's
+    mode = zone_map.goal_reward_mode if zone_map is not None else (goal_reward or "scaled")
+    png, js = demo_outputs(out_dir, seed, map_spec, beta, mode)  # refuses a β* not among the paper's
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a directory")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -162,7 +166,7 @@ def simulate(
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), mdp_path])
     mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
-    th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
+    th = _parse_theta(theta, mdp.n_features, mdp.feature_names, fixed_reward=mdp.has_offset)
     _check_beta(beta)
     _check_model(model)
     trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps,
@@ -257,7 +261,7 @@ def _goal_reward_mode(mdp, zone_map) -> str | None:
     """The map's goal reward mode; for an MDP archive, ``fixed`` if it holds a reward outside θ·φ."""
     if zone_map is not None:
         return zone_map.goal_reward_mode
-    return "fixed" if mdp.has_offset else None
+    return "fixed" if mdp.has_offset else "scaled"
 
 
 def _source(map_spec, mdp_path, zone_map, demos) -> dict:

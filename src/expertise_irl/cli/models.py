@@ -60,7 +60,7 @@ def compare_models_command(
     names = [m.strip() for m in models.split(",") if m.strip()]
     if out_path is not None:
         check_writable(out_path, force=force, inputs=[demos, *_map_files(map_spec), mdp_path])
-    mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
+    mdp, zone_map = _load_mdp(map_spec, mdp_path, goal_reward)
     trajs = read_demos_csv(demos, mdp)
     prepare_solver()
     hyp = DiscreteOptions(thetas=thetas, betas=betas).hypotheses(mdp.n_features)
@@ -100,7 +100,9 @@ def compare_models_command(
             "unavailable": cmp.unavailable,
             "settings": {"demos": str(demos), "demos_digest": file_digest(demos),
                          "mdp": str(mdp_path) if mdp_path else str(map_spec), "thetas": thetas,
-                         "betas": betas, "n_hypotheses": len(hyp), "prior": "uniform", "tol": tol},
+                         "betas": betas, "n_hypotheses": len(hyp), "prior": "uniform", "tol": tol,
+                         "goal_reward_mode": zone_map.goal_reward_mode if zone_map is not None
+                         else ("fixed" if mdp.has_offset else "scaled")},
             "run_time_s": elapsed,
         }
         from ..results import finite_or_null

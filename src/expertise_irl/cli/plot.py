@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._app import GoalRewardOption, _load_mdp, _say, app, handles_errors
+from ._app import _load_mdp, _say, app, handles_errors
 
 
 @app.command()
@@ -21,7 +21,6 @@ def plot(
     mdp_path: Annotated[Path | None, typer.Option(
         "--mdp", help="MDP archive (.npz) instead of --map; drawn from its state_xy.")] = None,
     demos: Annotated[Path | None, typer.Option(help="Demonstrations CSV to draw on the map.")] = None,
-    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Draw a result: posterior of β and of each θ_i, the map with the demonstrations, and the belief after each action for --per-action results.
@@ -45,7 +44,7 @@ def plot(
     doc = load_result(result)
     mdp = zone_map = trajs = None
     if map_spec is not None or mdp_path is not None:
-        mdp, zone_map = _load_mdp(map_spec, mdp_path, goal_reward)
+        mdp, zone_map = _load_mdp(map_spec, mdp_path)
         check_features(doc, result, mdp, mdp_path if mdp_path is not None else map_spec)
         if zone_map is None and mdp.state_xy is None:
             raise InputError(f"{mdp_path}: the MDP has no grid coordinates (state_xy), so it cannot "

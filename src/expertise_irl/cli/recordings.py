@@ -9,7 +9,16 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError, plural
-from ._app import ModelOption, _map_files, _note, _say, app, handles_errors
+from ._app import (
+    GoalRewardOption,
+    ModelOption,
+    _map_files,
+    _note,
+    _say,
+    app,
+    handles_errors,
+    with_goal_reward,
+)
 
 #: Options shared with the commands that ingest recordings.
 RateOption = Annotated[float, typer.Option(
@@ -116,6 +125,7 @@ def simulate_recordings_cmd(
     demos: Annotated[Path | None, typer.Option(
         help="Also write the moves the person chose (episode,step,x,y,heading), to compare with "
         "discretise.")] = None,
+    goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the outputs if they exist.")] = False,
 ) -> None:
     """Simulate a person on a floor plan and record the robot in metres, as a tele-operation log.
@@ -137,9 +147,9 @@ def simulate_recordings_cmd(
             check_writable(p, force=force, inputs=inputs)
     if demos is not None and demos.resolve() == out_path.resolve():
         raise InputError(f"{demos}: the recording and the demonstrations would be the same file")
-    plan = load_floor_plan_arg(map_spec)
+    plan = with_goal_reward(load_floor_plan_arg(map_spec), goal_reward)
     mdp = plan.to_mdp()
-    th = _parse_theta(theta, mdp.n_features, mdp.feature_names)
+    th = _parse_theta(theta, mdp.n_features, mdp.feature_names, fixed_reward=mdp.has_offset)
     _check_beta(beta)
     _check_model(model)
     motion = RobotMotion(hz=hz, speed=speed, noise=noise, pause_prob=pause_prob, pause_s=pause_s,

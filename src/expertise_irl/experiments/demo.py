@@ -147,16 +147,17 @@ def paper_beta(beta: float) -> float:
 
 
 def demo_outputs(out_dir: Path, seed: int, map_spec: str | None = None,
-                 beta: float | None = None) -> tuple[Path, Path]:
+                 beta: float | None = None, goal_reward_mode: str = "scaled") -> tuple[Path, Path]:
     """Paths of the demo's figure and result JSON inside ``out_dir``: one pair per seed, map and β*.
 
     The random map of a seed gives ``demo-seed{seed}.png``; ``--map`` (a bundled name or a file)
     adds the map's name, ``demo-{name}-seed{seed}.png``, so demos on several maps share a folder;
-    ``--beta`` adds ``-beta{β*}`` (``demo-seed0-beta10.png``).
+    ``--beta`` adds ``-beta{β*}`` (``demo-seed0-beta10.png``) and a fixed goal reward ``-fixed``.
     """
     tag = ""
     if map_spec is not None:
         stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(map_spec).stem).strip("._") or "map"
         tag = f"{stem}-"
     end = "" if beta is None else f"-beta{paper_beta(beta):g}"
+    end += "-fixed" if goal_reward_mode == "fixed" else ""
     return out_dir / f"demo-{tag}seed{seed}{end}.png", out_dir / f"result-{tag}seed{seed}{end}.json"

@@ -81,7 +81,9 @@ ridge along the scale and E[θ], E[β] mix scales (and are pulled by the β prio
 ‖θ‖₁ bound). To compare point estimates across variants use ``mean_theta_normalized`` =
 E[θ/‖θ‖₁] and ``mean_beta_normalized`` = E[β/‖θ‖₁] (per sample, then averaged); in the
 simplex variant they equal ``mean_theta`` and ``mean_beta``. In the box β/‖θ‖₁ can exceed
-βmax.
+βmax. On an MDP with a fixed reward (``TabularMDP.reward_offset``, e.g. a map with
+``goal_reward_mode = "fixed"``) (cθ, cβ) is another policy, there is no ridge, and the
+registry's ``birl`` reports no normalised estimates.
 
 Mixing. The walk is local (one δ or one β step per move), so a chain needs many
 iterations to cross the β range (from β ≈ 8 to 0.5 takes ≥ 75 accepted β moves) and can
@@ -143,8 +145,10 @@ class BIRLResult:
         n_out_of_bounds: proposals rejected for leaving the lattice.
         n_burn: chain points discarded before the means (the first ``n_burn`` rows).
         mean_theta, mean_beta: posterior means over the kept points (the paper's estimate).
-        mean_theta_normalized: ``[K]`` mean of θ/‖θ‖₁ over the kept points.
-        mean_beta_normalized: mean of β/‖θ‖₁ over the kept points.
+        mean_theta_normalized: ``[K]`` mean of θ/‖θ‖₁ over the kept points (None from the
+            registry's ``birl`` on an MDP with a fixed reward, where the rescaled point is
+            another policy).
+        mean_beta_normalized: mean of β/‖θ‖₁ over the kept points (None likewise).
         best_theta, best_beta, best_log_posterior: highest log posterior evaluated.
         n_solves: soft value iterations run; n_sweeps: their total sweeps.
         n_cache_hits: proposals whose log-likelihood was already known.
@@ -160,8 +164,8 @@ class BIRLResult:
     n_burn: int
     mean_theta: np.ndarray
     mean_beta: float
-    mean_theta_normalized: np.ndarray
-    mean_beta_normalized: float
+    mean_theta_normalized: np.ndarray | None
+    mean_beta_normalized: float | None
     best_theta: np.ndarray
     best_beta: float
     best_log_posterior: float

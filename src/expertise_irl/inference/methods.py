@@ -20,6 +20,7 @@ notes a user should see before a progress bar). Nothing here imports JAX until a
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -187,9 +188,12 @@ def _fit_birl(mdp, trajs, opts: BIRLOptions, seed: Seed, progress: Progress = No
     as_tasks(mdp, trajs)
     if not isinstance(mdp, TabularMDP):
         raise InputError("--method birl (Algorithm 1) takes one task; use map or nuts for several")
-    return extended_birl(mdp, trajs, n_iter=opts.iterations, delta=opts.delta, beta_step=opts.beta_step,
-                         variant=opts.variant, rng=np.random.default_rng(seed), progress=progress,
-                         prior=opts.prior, model=opts.model)
+    r = extended_birl(mdp, trajs, n_iter=opts.iterations, delta=opts.delta, beta_step=opts.beta_step,
+                      variant=opts.variant, rng=np.random.default_rng(seed), progress=progress,
+                      prior=opts.prior, model=opts.model)
+    if mdp.has_offset:  # (θ/‖θ‖₁, β/‖θ‖₁) is another policy once a fixed reward is part of R
+        r = dataclasses.replace(r, mean_theta_normalized=None, mean_beta_normalized=None)
+    return r
 
 
 def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None, setup=None):
@@ -235,8 +239,9 @@ def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
     diag["warnings"] = birl_warnings(diag, names, stats["stuck"])
     return {
         "theta_hat": r.mean_theta.tolist(), "beta_hat": float(r.mean_beta),
-        "theta_hat_normalized": r.mean_theta_normalized.tolist(),
-        "beta_hat_normalized": float(r.mean_beta_normalized),
+        # None on an MDP with a fixed reward, where the rescaled point is another policy
+        "theta_hat_normalized": None if r.mean_beta_normalized is None else r.mean_theta_normalized.tolist(),
+        "beta_hat_normalized": None if r.mean_beta_normalized is None else float(r.mean_beta_normalized),
         "map": {"theta": r.best_theta.tolist(), "beta": float(r.best_beta),
                 "log_posterior": float(r.best_log_posterior)},
         "credible_intervals": intervals,

@@ -1,10 +1,11 @@
 """Differentiable log-likelihood of demonstrations (paper Eq. 11) in θ and β.
 
 ``L(θ, β) = Σ_{s,a} N[s, a] log π_{θ,β}(a|s)`` with counts ``N`` of the observed pairs.
-Only ``w = θ/β`` matters; values are solved in scaled units ``v = V/β`` as the fixed point
-of the observation model's backup (:mod:`expertise_irl.models`), with the same red-black
-sweep (:func:`expertise_irl.planning.kernels.sweep`, one lane) and the same solver layout as the
-batched solver, so the two cannot disagree.
+Only ``w = θ'/β`` matters, with θ' = θ, or (θ, 1) on an MDP with a fixed reward
+(:meth:`~expertise_irl.mdp.TabularMDP.reward_weights`); values are solved in scaled units
+``v = V/β`` as the fixed point of the observation model's backup (:mod:`expertise_irl.models`),
+with the same red-black sweep (:func:`expertise_irl.planning.kernels.sweep`, one lane) and the
+same solver layout as the batched solver, so the two cannot disagree.
 
 Gradients come from implicit differentiation of that fixed point (a ``custom_vjp``:
 reverse-mode through the solver's ``while_loop`` is neither possible nor wanted). With
@@ -15,7 +16,8 @@ For ``maxent``:
     ∂L/∂w = Σ N φ(s, a)  −  (discounted expected features under π from the observed states,
                               corrected for their successors),
 
-the familiar max-ent IRL gradient; ∂L/∂θ = ∂L/∂w / β and ∂L/∂β = −(∂L/∂w · θ) / β².
+the familiar max-ent IRL gradient; ∂L/∂θ = ∂L/∂w / β and ∂L/∂β = −(∂L/∂w · θ') / β²
+(the fixed reward's weight, 1, enters ∂L/∂β but is not a parameter).
 """
 
 from __future__ import annotations

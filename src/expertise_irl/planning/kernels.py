@@ -228,7 +228,7 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     the plain last sweep of a check can certify convergence.
 
     Args:
-        weights: ``[H, K]`` scaled reward weights θ/β.
+        weights: ``[H, K']`` scaled reward weights θ'/β (θ' = :meth:`TabularMDP.reward_weights`).
         v0: ``[H, rows]`` initial scaled values in solver rows.
         gamma, tol, max_iter: scalars (see :func:`expertise_irl.planning.soft_vi.solve`).
 

@@ -1,7 +1,8 @@
 """Batched soft value iteration (paper Eqs. 8–9) over many hypotheses at once.
 
 All H hypotheses (θ_h, β_h) are solved together in one JAX ``while_loop``.
-The work is done in *scaled* units: with ``r = θ·φ / β`` the soft Bellman
+The work is done in *scaled* units: with ``r = R / β`` (``R = θ·φ`` plus the MDP's fixed
+reward, :meth:`~expertise_irl.mdp.TabularMDP.reward`) the soft Bellman
 equations become ``q = r + γ v[next]``, ``v = logsumexp_a q``, and the
 true quantities are ``V = β v``, ``Q = β q``. This makes every β from 1e-3 to
 100 equally well conditioned and means the stopping tolerance is directly the

@@ -100,6 +100,7 @@ def _plan_entry(plan) -> dict[str, Any]:
         "goal_bonus": plan.goal_bonus,
         "gamma": plan.gamma,
         "y_up": plan.y_up,
+        "goal_reward_mode": plan.goal_reward_mode,
     }
 
 

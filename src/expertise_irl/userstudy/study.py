@@ -67,6 +67,7 @@ def _plan_mdp(text: str, key: str):
         goal_bonus=p["goal_bonus"],
         gamma=p["gamma"],
         y_up=p["y_up"],
+        goal_reward_mode=p.get("goal_reward_mode", "scaled"),
     )
     return plan, plan.to_mdp()
 
