@@ -77,7 +77,7 @@ def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
     assert (out / "figures" / "fig_cardinality.png").stat().st_size > 1000
     assert "Table III" in md and "](figures/fig_cardinality.png)" in md
     claims = pd.read_csv(out / "claims.csv")
-    assert {"VI-E-card-in-regret", "VI-E-card-out-cosine", "VI-E-card-out-regret"} == set(claims["id"])
+    assert {"VI-E-card-in-regret", "VI-E-card-out-cosine", "VI-E-card-out-regret"} <= set(claims["id"])
     # Table III's cells are Pearson's ρ over these rows (in-set, the largest episode count).
     from scipy.stats import pearsonr
 
