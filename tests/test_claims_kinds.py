@@ -20,7 +20,8 @@ from expertise_irl.experiments.report.tables import factor_rows, pearson_table
 @pytest.mark.parametrize("paper, rho, p, verdict", [
     ("0.57†", 0.4, 0.001, C.REPRODUCED),  # the paper's sign, significant as the paper's
     ("0.57†", 0.1, 0.3, C.DIFFERS),  # the paper's sign, not significant: inconclusive
-    ("0.57†", -0.1, 0.3, C.NOT_REPRODUCED),  # the other sign
+    ("0.57†", -0.1, 0.3, C.DIFFERS),  # the other sign, not significant: noise, not a finding
+    ("0.57†", -0.3, 0.01, C.NOT_REPRODUCED),  # the other sign, significant
     ("−0.45†", -0.3, 0.01, C.REPRODUCED),
     ("−0.45†", 0.3, 0.01, C.NOT_REPRODUCED),
     ("0.05", -0.04, 0.6, C.REPRODUCED),  # not significant, like the paper's: either sign
@@ -61,9 +62,11 @@ def test_no_effect_rule():
     a = np.arange(1.0, 21.0)
     same = K.no_effect_claim("x", "s", "c", "p", a + 0.5, a, "late", "early", "q", ruled_out="below")
     assert same.verdict == C.REPRODUCED  # above: not what the claim rules out
-    slight = K.no_effect_claim("x", "s", "c", "p", a - np.r_[0.1, -0.05] .repeat(10)[:20], a, "late",
-                               "early", "q", ruled_out="below")
+    b = np.arange(1.0, 11.0)  # 5 pairs 0.1 below, 5 pairs 0.08 above: one-sided p = 0.12
+    slight = K.no_effect_claim("x", "s", "c", "p", b - np.r_[0.1, -0.08].repeat(5), b, "late", "early", "q",
+                               ruled_out="below")
     assert slight.verdict == C.DIFFERS and slight.why.startswith("inconclusive: ")
+    assert 0.05 < slight.p < 0.2
     lower = K.no_effect_claim("x", "s", "c", "p", a - 1, a, "late", "early", "q", ruled_out="below")
     assert lower.verdict == C.NOT_REPRODUCED and lower.p < 0.05
 
@@ -137,21 +140,29 @@ def test_margin_rule():
 
 
 def test_ratio_extras_by_hand():
-    # out of set: mostly low people (large values); in set: one of each group
-    num = np.array([1.0, 10.0, 10.0, 10.0, 10.0])
-    den = np.array([0.5, 5.0, 8.0])
-    gn = np.array(["high", "low", "low", "low", "low"])
-    gd = np.array(["high", "low", "medium"])
+    # out of set: mostly low people (large values); in set: as many of each group (6 units each: fewer
+    # withhold the mix-adjusted ratio)
+    num = np.array([1.0, 10.0, 10.0, 10.0, 10.0]).repeat(6)
+    den = np.array([0.5, 5.0, 8.0]).repeat(6)
+    gn = np.array(["high", "low", "low", "low", "low"]).repeat(6)
+    gd = np.array(["high", "low", "medium"]).repeat(6)
     ex = ratio_extras(num, den, gn, gd, paired=False)
+    assert ex.group_text() == "high 2× (n = 6/6), medium n/a (n = 0/6), low 2× (n = 24/6)"
     assert ex.by_group["high"][0] == pytest.approx(2.0) and ex.by_group["low"][0] == pytest.approx(2.0)
     assert np.isnan(ex.by_group["medium"][0])
-    # reweighted to the in-set mix over the groups both hold (high 1/2, low 1/2): (1 + 10) / (0.5 + 5)
-    assert ex.adjusted == pytest.approx(11.0 / 5.5)
-    assert num.mean() / den.mean() == pytest.approx(8.2 / 4.5)  # the pooled ratio differs
+    # no out-of-set medium person: no mix to reweight the medium group to
+    assert np.isnan(ex.adjusted)
+    assert ex.adjusted_text() == "n/a (fewer than 6 units on a side in medium (0/6))"
+    assert num.mean() / den.mean() == pytest.approx(8.2 / 4.5)
     assert ex.medians == pytest.approx(10.0 / 5.0)
-    assert ex.top_share == pytest.approx(10.0 / 41.0)
-    paired = ratio_extras(np.array([2.0, 2.0, 30.0]), np.array([1.0, 1.0, 1.0]),
-                          np.array(["high", "high", "low"]), None, paired=True)
+    assert ex.top_share == pytest.approx(10.0 / 246.0)
+    two = ratio_extras(num, den[:12], gn, gd[:12], paired=False)  # in set: high and low only
+    # reweighted to the in-set mix (high 1/2, low 1/2): (1 + 10) / (0.5 + 5)
+    assert two.adjusted == pytest.approx(11.0 / 5.5)
+    assert num.mean() / den[:12].mean() == pytest.approx(8.2 / 2.75)  # the pooled ratio differs
+    assert "high 50%, low 50%" in two.adjusted_text()
+    paired = ratio_extras(np.array([2.0, 2.0, 30.0]).repeat(6), np.array([1.0, 1.0, 1.0]).repeat(6),
+                          np.array(["high", "high", "low"]).repeat(6), None, paired=True)
     assert paired.adjusted == pytest.approx((2.0 + 30.0) / 2.0)  # each group weighted equally
 
 
@@ -163,7 +174,8 @@ def test_ratio_claim_columns_in_claims_csv(tmp_path):
     assert list(frame.columns[:12]) == ["id", "section", "claim", "paper", "ours", "verdict", "why", "rule",
                                         "n", "value", "ci_low", "ci_high"]  # the old columns, first
     assert {"median_ratio", "adjusted_ratio", "group_ratios", "number", "p"} <= set(frame.columns)
-    assert got.group_ratios == "high 5.33×, low 2.67×" and got.number.startswith("4× [")
+    assert got.group_ratios == "high 5.33× (n = 3), low 2.67× (n = 3)" and got.number.startswith("4× [")
+    assert np.isnan(got.adjusted_ratio) and "mix-adjusted n/a" in got.ours  # 3 people a group
     assert "two-stage cluster bootstrap: the 3 maps" in got.why
 
 

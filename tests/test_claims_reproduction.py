@@ -89,7 +89,9 @@ def test_matrix_picks_the_paper_run_then_the_largest(folder):
     assert vib["`scaled`"].startswith("**not reproduced**: Full 2 vs Fixed θ 1 ([conditions-paper](")
     assert vib["`fixed`"].startswith("**reproduced**: Full 0.1 vs Fixed θ 1.9 ([conditions-paper-fixed](")
     box = table["claim VII-B-beta-birl_box"]
-    assert box["`fixed`"] == "**differs**: 3× ([optimisation-big](optimisation-big/report/report.md))"
+    assert box["`fixed`"] == ("**differs**: 3× ([optimisation-big](optimisation-big/report/report.md)) "
+                              "(small scale)")  # no paper-scale run judges it: said, not silent
+    assert not vib["`fixed`"].endswith("(small scale)")
     assert box["`scaled`"] == "—"
     assert box["`scaled, model maxent-relative`"].startswith("**not reproduced**: 0.6×")
     # a legacy claims.csv: the number from the start of "ours"; an inconclusive differs says so
@@ -97,7 +99,7 @@ def test_matrix_picks_the_paper_run_then_the_largest(folder):
     assert cell.startswith("**differs (inconclusive)**: ρ = −0.01 ([conditions-small](")
     assert "claim VII-B-beta-map" not in table  # ours, not the paper's
     # columns: the finishing protocol first; rows in the paper's section order
-    assert text.splitlines()[4].startswith("| section | claim | paper | `fixed` | `scaled` | `scaled, model")
+    assert text.splitlines()[6].startswith("| section | claim | paper | `fixed` | `scaled` | `scaled, model")
     assert [r["section"] for r in table.values()] == ["VI-B", "VI-D", "VII-B", "VII-D"]
 
 
@@ -107,6 +109,14 @@ def test_count_line(folder):
     # reproduced, Table I differs
     assert first == ("Reproduced under the finishing protocol (`fixed`): 1 of 2; under `scaled`: 0 of 2; "
                      "under `scaled, model maxent-relative`: 0 of 1.")
+
+
+def test_count_over_the_claims_judged_under_both(folder):
+    lines = R.matrix(folder).splitlines()
+    # judged under both protocols: VI-B only (fixed reproduced, scaled not); VII-B (fixed only) and
+    # Table I (scaled only) are left out, so that the two counts compare the same claims
+    assert lines[2] == "Judged under both protocols: reproduced under `fixed` 1 of 1, under `scaled` 0 of 1."
+    assert '"(small scale)" after the run marks a cell' in lines[4]
 
 
 def test_count_line_without_fixed_runs(tmp_path):

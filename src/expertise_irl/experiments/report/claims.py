@@ -1,28 +1,36 @@
 """Claims of the paper and the rules that judge them, computed from the rows (never written by hand).
 
 Every claim gives a :class:`ClaimResult`: the paper's number, ours, a verdict and one sentence
-built from the numbers. The verdict rules (also printed in each report):
+built from the numbers. Paired values within 1e-9 (relative) of each other are ties, zero differences
+(:func:`.stats.paired_differences`). The verdict rules (also printed in each report, :data:`RULES`):
 
-- ordering ("A below B"): *reproduced* if the mean paired difference has the claimed sign and a
-  two-sided Wilcoxon signed-rank test gives p < 0.05; *differs* if the sign is right but p ≥ 0.05
-  (inconclusive); *not reproduced* if the sign is wrong (or every difference is zero).
+- ordering ("A below B"): the mean paired difference and a one-sided Wilcoxon signed-rank test in
+  each direction. *reproduced* if the mean has the claimed sign and the test in the claimed direction
+  gives p < 0.05; *not reproduced* if the mean has the other sign and the test in that direction gives
+  p < 0.05, or if every pair is a tie; *differs* (inconclusive) otherwise: not significant, or the
+  mean and the rank test disagree.
 - ratio ("≈ X×"): the ratio of means with a 95% percentile-bootstrap CI (paired where the rows
   pair; two-stage, maps then the people or instances within them, where the rows carry their map),
   beside the per-group, mix-adjusted and median ratios (:mod:`.ratios`). *reproduced* if the ratio
   is within [X/1.5, 1.5·X] and the CI excludes 1 on the claimed side; *differs* if the CI excludes
-  1 on the claimed side but the ratio is outside the band (right direction, wrong size), or if the
-  CI includes 1 or cannot be computed (inconclusive); *not reproduced* if the whole CI lies on the
-  other side of 1.
+  1 on the claimed side but the ratio is outside the band (right direction, wrong size); where the
+  CI includes 1, *differs*, inconclusive if the CI also overlaps the band and "the rows exclude the
+  paper's value" if it does not; *differs* (inconclusive) without a CI; *not reproduced* if the whole
+  CI lies on the other side of 1; *n/a (no data)* where the ratio is 0 / 0.
   "≈ m orders of magnitude" uses the log band [10^(m−0.5), 10^(m+0.5)] instead.
 - share ("most"): *reproduced* if the share is above 1/2 and a one-sided binomial test against 1/2
   gives p < 0.05; *differs* if above 1/2 with p ≥ 0.05 (inconclusive); *not reproduced* if at most 1/2.
 - threshold ("≈ 0 by n episodes"): *reproduced* if the mean is at most the threshold in every group;
   *differs* if the mean over all groups is but some group's is not; *not reproduced* otherwise.
-- correlation ("ρ > 0, significant"): as ordering, with Pearson's p in place of Wilcoxon's.
+- correlation ("ρ > 0, significant"): *reproduced* if Pearson's ρ has the claimed sign with p < 0.05;
+  *not reproduced* if it has the other sign with p < 0.05; *differs* if p ≥ 0.05, inconclusive if the
+  Fisher-z 95% CI of ρ includes the paper's ρ, else "the rows exclude the paper's value".
 - table-cell, no-effect, share-gain, difference, every-count, margin (:mod:`.claim_kinds`): see
   :data:`RULES`.
 
-The why of an inconclusive *differs* starts with "inconclusive:" (:data:`INCONCLUSIVE`).
+The why of an inconclusive *differs* starts with "inconclusive:" (:data:`INCONCLUSIVE`); that of a
+*differs* whose CI includes the null but rules out the paper's value with "the rows exclude the
+paper's value:" (:data:`EXCLUDED`).
 
 A claim is *not judged (ours)* where the number is for one of our methods, beside the paper's,
 and *not judged* where the rows cannot judge it (the "why" says why, e.g. timings taken while
@@ -32,18 +40,29 @@ other tasks shared the machine).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
 from ...errors import plural
 from .ratios import ratio_extras
-from .stats import BOOTSTRAP_SEED, RESAMPLES, cluster_ratio_ci, fmt, fmt_p, ratio_ci, wilcoxon_p
+from .stats import (
+    BOOTSTRAP_SEED,
+    MIN_BOOTSTRAP_N,
+    RESAMPLES,
+    TIE_ATOL,
+    TIE_RTOL,
+    cluster_ratio_ci,
+    fisher_ci,
+    fmt,
+    fmt_p,
+    paired_differences,
+    ratio_ci,
+    wilcoxon_p,
+)
 
 ALPHA = 0.05
 BAND = 1.5
-#: The fewest rows per side a ratio's bootstrap CI is computed from: the fewest pairs with which the
-#: ordering rule's two-sided Wilcoxon test can reach p < 0.05 (2 / 2**6). With fewer the CI is n/a.
-MIN_BOOTSTRAP_N = 6
 #: Half-width, in orders of magnitude, of the band of "≈ m orders of magnitude" claims.
 LOG_HALF_BAND = 0.5
 REPRODUCED, DIFFERS, NOT_REPRODUCED = "reproduced", "differs", "not reproduced"
@@ -52,37 +71,47 @@ NOT_JUDGED, WITHHELD, NO_DATA = "not judged (ours)", "not judged", "n/a (no data
 VERDICTS = (REPRODUCED, DIFFERS, NOT_REPRODUCED, NOT_JUDGED, WITHHELD, NO_DATA)
 #: What a verdict means beyond its rule (printed under the rules where the verdict occurs).
 VERDICT_NOTES = {
-    DIFFERS: "differs: either the rows cannot tell (not significant, a CI that includes 1, or too few "
-             "rows for a CI), and then its why starts with \"inconclusive:\"; or the direction is right "
-             "but not the claimed size (for threshold claims: some group above the threshold).",
+    DIFFERS: "differs: either the rows cannot tell (not significant, a CI that includes both the null "
+             "and the paper's value, a mean and a rank test that disagree, or too few rows for a CI), "
+             "and then its why starts with \"inconclusive:\"; or the rows include no effect but rule "
+             "out the paper's value (its CI lies outside the paper's band or misses the paper's ρ), and "
+             "then its why starts with \"the rows exclude the paper's value:\"; or the direction is "
+             "right but not the claimed size (for threshold claims: some group above the threshold).",
     NOT_JUDGED: "not judged (ours): the same number for one of our methods, beside the paper's; the "
                 "paper makes no claim about it.",
     WITHHELD: "not judged: the rows cannot judge this claim; the why says what is missing.",
-    NO_DATA: "n/a (no data): the sweep has no rows for it.",
+    NO_DATA: "n/a (no data): the sweep has no rows for it (or too few, or a ratio of 0 / 0).",
 }
+_TIES = (f"pairs equal within {TIE_RTOL:g} relative (+ {TIE_ATOL:g}) are ties, zero differences, "
+         "dropped from the test and counted as 0 in the mean")
 
 RULES = {
-    "ordering": "Ordering claims (A below/above B): reproduced if the mean paired difference has the "
-                "claimed sign and a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) gives "
-                "p < 0.05; differs if the sign is right but p ≥ 0.05 (inconclusive); not reproduced if "
-                "the sign is wrong or every difference is zero.",
+    "ordering": "Ordering claims (A below/above B): the mean paired difference and one-sided Wilcoxon "
+                "signed-rank tests (scipy.stats.wilcoxon) in each direction; " + _TIES + ". Reproduced "
+                "if the mean difference has the claimed sign and the test in the claimed direction "
+                "gives p < 0.05; not reproduced if the mean has the other sign and the test in that "
+                "direction gives p < 0.05, or if every pair is a tie; differs otherwise (inconclusive: "
+                "not significant either way, or the mean and the rank test point different ways).",
     "ratio": f"Ratio claims (≈ X×): our ratio of means, with a 95% percentile-bootstrap CI "
              f"({RESAMPLES} resamples, numpy Generator seed {BOOTSTRAP_SEED}; rows that pair, the same "
              "people or instances under both, are resampled as pairs, other rows each side on its "
              "own; where the rows carry their map (`environment`) the bootstrap is two-stage: the maps "
              "are drawn with replacement first, then the people or instances within each drawn map, "
              "so that people who share a map are not counted as independent). Beside the pooled ratio "
-             "each ratio claim gives the ratio per expertise group of β*, a mix-adjusted ratio "
-             "(unpaired sides: the numerator's people reweighted to the denominator's group mix; "
-             "paired: each group weighted equally) and the ratio of medians; the verdict is on the "
-             "pooled ratio, the paper's. "
-             f"Reproduced if the ratio lies within [X/{BAND}, {BAND}·X] and the CI excludes 1 on "
-             "the claimed side; differs if the CI excludes 1 on the claimed side but the ratio is "
-             "outside the band (right direction, wrong size), or if the CI includes 1 (inconclusive); "
-             "not reproduced if the whole CI lies on the other side of 1 (its nearer bound at 1 or past "
-             "it). With fewer than "
-             f"{MIN_BOOTSTRAP_N} rows on a side (too few for the ordering rule's Wilcoxon test to reach "
-             "p < 0.05) there is no CI and the claim is inconclusive (differs).",
+             "each ratio claim gives the ratio per expertise group of β* with its n, a mix-adjusted "
+             "ratio (unpaired sides: the numerator's people reweighted to the denominator's group mix; "
+             "paired: each group weighted equally; n/a where a group has fewer than "
+             f"{MIN_BOOTSTRAP_N} people or instances on a side) and the ratio of medians (n/a where "
+             "the denominator's median is below 1e-9); the verdict is on the pooled ratio, the paper's. "
+             f"Reproduced if the ratio lies within the band [X/{BAND}, {BAND}·X] and the CI excludes 1 "
+             "on the claimed side; differs if the CI excludes 1 on the claimed side but the ratio is "
+             "outside the band (right direction, wrong size); where the CI includes 1: differs, "
+             "inconclusive if the CI also overlaps the band, and \"the rows exclude the paper's "
+             "value\" if it lies wholly outside the band; not reproduced if the whole CI lies on the "
+             "other side of 1 (its nearer bound at 1 or past it). With fewer than "
+             f"{MIN_BOOTSTRAP_N} rows on a side (too few for a two-sided Wilcoxon test to reach "
+             "p < 0.05) there is no CI and the claim is inconclusive (differs). A ratio of 0 / 0 (both "
+             "means 0) is undefined: n/a (no data).",
     "magnitude": f"Order-of-magnitude claims (≈ m orders of magnitude): as ratio claims, with a band of "
                  f"{LOG_HALF_BAND:g} orders either side on a log scale, [10^(m−{LOG_HALF_BAND:g}), "
                  f"10^(m+{LOG_HALF_BAND:g})] (for 2 orders: {10 ** 1.5:.1f}× to {10 ** 2.5:.0f}×).",
@@ -93,22 +122,28 @@ RULES = {
                  "threshold in every expertise group; differs if the mean over all groups is but "
                  "some group's is not; not reproduced otherwise.",
     "correlation": "Correlation claims (ρ of a given sign): reproduced if Pearson's ρ has the claimed "
-                   "sign with p < 0.05; differs if the sign is right but p ≥ 0.05 (inconclusive); not "
-                   "reproduced if the sign is wrong.",
+                   "sign with p < 0.05; not reproduced if it has the other sign with p < 0.05; differs "
+                   "if p ≥ 0.05, whatever the sign: inconclusive if the Fisher-z 95% CI of ρ "
+                   "(tanh(atanh ρ ± 1.96/√(n − 3))) includes the paper's ρ, and \"the rows exclude "
+                   "the paper's value\" if it does not.",
     "table-cell": "Table cells (one claim per cell of Tables I–IV): our Pearson ρ and p over the rows the "
-                  "table names, with n, against the paper's cell. Where the paper's cell has † (p < "
-                  "0.05): reproduced if our ρ has its sign and p < 0.05; differs if the sign is the "
-                  "paper's but p ≥ 0.05 (inconclusive); not reproduced if the sign is the other. Where "
-                  "the paper's cell has no †: reproduced if our p ≥ 0.05, whatever the sign (the sign of "
-                  "a correlation the paper found not significant is not a finding; with a small n this "
-                  "is easy to pass, so read it with n); differs if p < 0.05 with the paper's sign (a "
-                  "correlation the paper did not find significant, in its direction); not reproduced if "
-                  "p < 0.05 with the other sign. A cell our rows cannot compute (a constant factor, a "
-                  "missing column) is n/a (no data).",
+                  "table names, with n and the Fisher-z 95% CI of ρ, against the paper's cell. Where "
+                  "the paper's cell has † (p < 0.05): reproduced if our ρ has its sign and p < 0.05; not "
+                  "reproduced if our ρ has the other sign and p < 0.05; differs if p ≥ 0.05, whatever "
+                  "the sign: inconclusive if our CI includes the paper's ρ, and \"the rows exclude the "
+                  "paper's value\" if it does not. Where the paper's cell has no †: reproduced if our "
+                  "p ≥ 0.05, whatever the sign (the sign of a correlation the paper found not "
+                  "significant is not a finding; with a small n this is easy to pass, so read it with "
+                  "n); differs if p < 0.05 with the paper's sign (a correlation the paper did not find "
+                  "significant, in its direction); not reproduced if p < 0.05 with the other sign. A "
+                  "cell our rows cannot compute (a constant factor, a missing column) is n/a (no data).",
     "no-effect": "Claims that something does not happen (no improvement; not worse): the mean paired "
-                 "difference and a two-sided Wilcoxon signed-rank test. Reproduced if the difference is "
-                 "not in the direction the claim rules out (or is zero); differs if it is but p ≥ 0.05 "
-                 "(inconclusive); not reproduced if it is with p < 0.05.",
+                 "difference and a one-sided Wilcoxon signed-rank test in the direction the claim "
+                 "rules out; " + _TIES + ". Not reproduced if the mean difference is in that direction "
+                 "and the test gives p < 0.05; differs (inconclusive) if the mean is in that direction "
+                 "with p ≥ 0.05, or if it is not but the test gives p < 0.05 (the mean and the rank "
+                 "test disagree); reproduced otherwise (the mean not in that direction, or zero, and "
+                 "the test not significant).",
     "share-gain": "Share claims that episodes bring about (most people right after n episodes): each "
                   "person right or wrong at 1 episode and at n, paired. Reproduced if the share at n "
                   "is above 1/2 with a one-sided binomial p < 0.05 and above the share at 1 with an "
@@ -117,16 +152,20 @@ RULES = {
                   "1/2 or at most the share at 1; differs otherwise (inconclusive).",
     "difference": "Unpaired orderings (A below/above B, different people): the difference of means with "
                   "a 95% percentile-bootstrap CI (two-stage by map where the rows carry `environment`). "
-                  "Reproduced if the difference has the claimed sign and the CI excludes 0; differs if "
-                  "the sign is right but the CI includes 0 (inconclusive); not reproduced if the sign is "
-                  "wrong.",
+                  "Reproduced if the difference has the claimed sign and the CI excludes 0; not "
+                  "reproduced if it has the other sign and the CI excludes 0 on that side; differs "
+                  "(inconclusive) otherwise: a CI that includes 0, or no CI, with fewer than "
+                  f"{MIN_BOOTSTRAP_N} people on a side.",
     "every-count": "Claims made for every episode count from some count on: judged at each count by the "
-                   "rule named beside this one; the verdict is the worst of them (not reproduced, then "
-                   "differs, then reproduced), so that every count must pass.",
+                   "rule named beside this one; the verdict is the worst of the judged counts (not "
+                   "reproduced, then differs, then reproduced), so that every count must pass. A count "
+                   "without rows (n/a) is named in the why but does not hide the others' verdicts; the "
+                   "claim is n/a (no data) only if no count is judged.",
     "margin": "Margin claims (the change from n to m episodes is within the margin of error at n): per "
               "expertise group, the change of the mean against the half-width of the 95% Student-t CI "
               "at n. Reproduced if every group's change is within its half-width; differs if the change "
-              "over all groups is but some group's is not; not reproduced otherwise.",
+              "over all groups is but some group's is not; not reproduced otherwise. A group the claim "
+              "names with fewer than 2 rows at n or none at m makes the claim n/a (no data).",
 }
 
 
@@ -162,19 +201,90 @@ class ClaimResult:
         return replace(self, **changes)
 
 
-#: How the why of a "differs" begins where the rows cannot tell (not significant, a CI that includes 1,
-#: too few rows), so that the claims table tells it from "right direction, wrong size".
+#: How the why of a "differs" begins where the rows cannot tell (not significant, a CI that includes both
+#: the null and the paper's value, too few rows), so that the claims table tells it from "right
+#: direction, wrong size".
 INCONCLUSIVE = "inconclusive: "
+#: How the why of a "differs" begins where the CI includes the null but rules out the paper's value.
+EXCLUDED = "the rows exclude the paper's value: "
+#: Why-prefix kinds of a "differs" (:func:`_differs_why`): none, inconclusive, the paper's value excluded.
+PLAIN, UNSURE, RULED_OUT = "", "inconclusive", "excluded"
 
 
 def _inconclusive(why: str, inconclusive: bool) -> str:
     return INCONCLUSIVE + why if inconclusive else why
 
 
-def _ordering_verdict(sign_right: bool, p: float) -> str:
-    if not sign_right:
+def _differs_why(why: str, verdict: str, kind: str) -> str:
+    """``why`` with the prefix a "differs" of ``kind`` takes (none for other verdicts)."""
+    if verdict != DIFFERS:
+        return why
+    return {UNSURE: INCONCLUSIVE, RULED_OUT: EXCLUDED}.get(kind, "") + why
+
+
+def strip_prefix(why: str) -> str:
+    """``why`` without the prefix of an inconclusive or excluding "differs"."""
+    return why.removeprefix(INCONCLUSIVE).removeprefix(EXCLUDED)
+
+
+class PairedTest(NamedTuple):
+    """A paired comparison toward one direction ("below"/"above"): the mean difference (ties at 0), the
+    number of ties, the sign of the mean (+1: toward, −1: the other way, 0: none) and the one-sided
+    Wilcoxon p toward and the other way (NaN where every pair is a tie)."""
+
+    mean_d: float
+    ties: int
+    sign: int
+    p_toward: float
+    p_away: float
+
+    @property
+    def all_ties(self) -> bool:
+        return bool(np.isnan(self.p_toward) and np.isnan(self.p_away))
+
+    def agree(self) -> bool:
+        """False where the mean points one way and the rank test is significant the other way (or the
+        mean is 0 and the rank test significant)."""
+        if self.sign > 0:
+            return not self.p_away < ALPHA
+        if self.sign < 0:
+            return not self.p_toward < ALPHA
+        return not (self.p_toward < ALPHA or self.p_away < ALPHA)
+
+
+def paired_test(a, b, toward: str) -> PairedTest:
+    """``a`` against ``b`` (paired) toward ``toward``: see :class:`PairedTest`."""
+    d = paired_differences(a, b)
+    mean_d = float(d.mean()) if len(d) else float("nan")
+    less, greater = wilcoxon_p(a, b, "less"), wilcoxon_p(a, b, "greater")
+    sign = int(np.sign(mean_d)) * (-1 if toward == "below" else 1)
+    p_toward, p_away = (less, greater) if toward == "below" else (greater, less)
+    return PairedTest(mean_d, int((d == 0).sum()), sign, p_toward, p_away)
+
+
+def _opposite(direction: str) -> str:
+    return "above" if direction == "below" else "below"
+
+
+def rank_test_text(t: PairedTest, a_name: str, b_name: str, toward: str) -> str:
+    """The one-sided tests of ``t`` in words."""
+    if t.all_ties:
+        return "every pair is a tie, nothing to test"
+    ties = f" ({plural(t.ties, 'tie')} dropped)" if t.ties else ""
+    return (f"one-sided Wilcoxon p = {fmt_p(t.p_toward)} for {a_name} {toward} {b_name} and "
+            f"{fmt_p(t.p_away)} for {a_name} {_opposite(toward)} {b_name}{ties}"
+            + ("" if t.agree() else "; the mean and the rank test point different ways"))
+
+
+def ordering_verdict(t: PairedTest) -> str:
+    """The ordering rule on a :class:`PairedTest` toward the claimed direction."""
+    if t.all_ties:
         return NOT_REPRODUCED
-    return REPRODUCED if np.isfinite(p) and p < ALPHA else DIFFERS
+    if t.sign > 0 and t.p_toward < ALPHA:
+        return REPRODUCED
+    if t.sign < 0 and t.p_away < ALPHA:
+        return NOT_REPRODUCED
+    return DIFFERS
 
 
 def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *, claimed="below",
@@ -189,22 +299,15 @@ def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *,
     if n == 0:
         return ClaimResult(id, section, claim, paper, ours_text, NO_DATA, f"no paired {who} to compare.",
                            "ordering", 0)
-    d = a - b
-    mean_d = float(d.mean())
-    p = wilcoxon_p(d)
-    sign_right = mean_d < 0 if claimed == "below" else mean_d > 0
-    verdict = _ordering_verdict(sign_right, p) if judged else NOT_JUDGED
-    actual = "below" if mean_d < 0 else "above" if mean_d > 0 else "equal to"
-    if np.isfinite(p):
-        test = f"Wilcoxon p = {fmt_p(p)}" + (" < 0.05" if p < ALPHA else " ≥ 0.05, not significant")
-    else:
-        test = "Wilcoxon test undefined"
+    t = paired_test(a, b, claimed)
+    verdict = ordering_verdict(t) if judged else NOT_JUDGED
+    actual = "below" if t.mean_d < 0 else "above" if t.mean_d > 0 else "equal to"
     why = (f"mean {quantity} is {fmt(a.mean())} for {a_name} and {fmt(b.mean())} for {b_name} over {n} "
-           f"paired {who}: {a_name} is {actual} {b_name}, {'as' if sign_right else 'not as'} claimed; "
-           f"{test}.")
-    why = _inconclusive(why, verdict == DIFFERS)
-    return ClaimResult(id, section, claim, paper, ours_text + f" (n = {n}, p = {fmt_p(p)})", verdict, why,
-                       "ordering", n, mean_d, p=p, number=f"{ours_text} (n = {n})")
+           f"paired {who}: {a_name} is {actual} {b_name}, {'as' if t.sign > 0 else 'not as'} claimed; "
+           f"{rank_test_text(t, a_name, b_name, claimed)}.")
+    why = _differs_why(why, verdict, UNSURE)
+    return ClaimResult(id, section, claim, paper, ours_text + f" (n = {n}, p = {fmt_p(t.p_toward)})", verdict,
+                       why, "ordering", n, t.mean_d, p=t.p_toward, number=f"{ours_text} (n = {n})")
 
 
 def ratio_band(target: float, orders: float | None = None) -> tuple[float, float]:
@@ -225,16 +328,26 @@ def _ci_side(ci: tuple[float, float], target: float) -> str:
     return "claimed" if hi < 1 else "other" if lo >= 1 else "includes"
 
 
-def ratio_verdict(ratio: float, target: float, ci: tuple[float, float],
-                  band: tuple[float, float] | None = None) -> str:
-    """The ratio rule: ``ratio`` and its 95% ``ci`` against a claim of ≈ ``target``."""
+def ratio_judgement(ratio: float, target: float, ci: tuple[float, float],
+                    band: tuple[float, float] | None = None) -> tuple[str, str]:
+    """The ratio rule: (verdict, why kind) of ``ratio`` and its 95% ``ci`` against ≈ ``target``."""
     lo, hi = band or ratio_band(target)
     if np.isnan(ratio):
-        return NOT_REPRODUCED
+        return NO_DATA, PLAIN  # 0 / 0
     side = _ci_side(ci, target)
     if side == "claimed":
-        return REPRODUCED if lo <= ratio <= hi else DIFFERS
-    return NOT_REPRODUCED if side == "other" else DIFFERS  # includes 1 or undefined: inconclusive
+        return (REPRODUCED if lo <= ratio <= hi else DIFFERS), PLAIN
+    if side == "other":
+        return NOT_REPRODUCED, PLAIN
+    if side == "includes" and (ci[1] < lo or ci[0] > hi):
+        return DIFFERS, RULED_OUT  # the CI includes 1 but misses the band
+    return DIFFERS, UNSURE  # includes 1 and overlaps the band, or no CI
+
+
+def ratio_verdict(ratio: float, target: float, ci: tuple[float, float],
+                  band: tuple[float, float] | None = None) -> str:
+    """The ratio rule's verdict (:func:`ratio_judgement`)."""
+    return ratio_judgement(ratio, target, ci, band)[0]
 
 
 def _sides(x, paired: bool):
@@ -272,12 +385,34 @@ def _bootstrap_text(n: int, n_num: int, n_den: int, who: str, *, paired: bool, m
     return first + f"drawn map each side's people on its own ({n_num} and {n_den} {who} in all)"
 
 
-def _ratio_side_text(ci_side: str, target: float, few: bool) -> str:
-    return {"claimed": "the CI excludes 1 on the claimed side",
+def _ratio_side_text(ci, target: float, kind: str, verdict: str, few: bool) -> str:
+    """Where the CI lies against 1 (and, where it includes 1, against the band), for the why."""
+    ci_side = _ci_side(ci, target)
+    text = {"claimed": "the CI excludes 1 on the claimed side",
             "other": f"the CI lies {'at or below' if target > 1 else 'at or above'} 1, against the claim",
             "includes": "the CI includes 1",
             "undefined": (f"no CI from fewer than {MIN_BOOTSTRAP_N} rows" if few
                           else "the CI is undefined")}[ci_side]
+    if kind == RULED_OUT:
+        return text + " but lies wholly outside the band: the rows rule out the paper's size"
+    if kind == UNSURE:
+        text += " and overlaps the band" if ci_side == "includes" else ""
+        text += "" if verdict == DIFFERS else ": inconclusive"  # beside the judged ones, or withheld
+    return text
+
+
+def _finite_sides(num, den, paired: bool, clusters, groups, units):
+    """``num``, ``den`` without NaNs and each side's (clusters, groups, units) labels to match."""
+    (cn, cd), (gn, gd), (un, ud) = (_sides(x, paired) for x in (clusters, groups, units))
+    if paired:
+        keep = np.isfinite(num) & np.isfinite(den)
+        num, den = num[keep], den[keep]
+        cn, gn, un = _keep(keep, cn, gn, un)
+        return num, den, (cn, cn), (gn, gn), (un, un)
+    kn, kd = np.isfinite(num), np.isfinite(den)
+    cn, gn, un = _keep(kn, cn, gn, un)
+    cd, gd, ud = _keep(kd, cd, gd, ud)
+    return num[kn], den[kd], (cn, cd), (gn, gd), (un, ud)
 
 
 def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantity, target,
@@ -294,19 +429,8 @@ def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantit
     cluster bootstrap (:func:`.stats.cluster_ratio_ci`); with ``groups`` the claim also gives the
     ratio per group, mix-adjusted and of medians (:func:`.ratios.ratio_extras`).
     """
-    num = np.asarray(num, dtype=np.float64)
-    den = np.asarray(den, dtype=np.float64)
-    (cn, cd), (gn, gd), (un, ud) = (_sides(x, paired) for x in (clusters, groups, units))
-    if paired:
-        keep = np.isfinite(num) & np.isfinite(den)
-        num, den = num[keep], den[keep]
-        cn, gn, un = _keep(keep, cn, gn, un)
-        cd, gd, ud = cn, gn, un
-    else:
-        kn, kd = np.isfinite(num), np.isfinite(den)
-        num, den = num[kn], den[kd]
-        cn, gn, un = _keep(kn, cn, gn, un)
-        cd, gd, ud = _keep(kd, cd, gd, ud)
+    num, den, (cn, cd), (gn, gd), (un, ud) = _finite_sides(
+        np.asarray(num, dtype=np.float64), np.asarray(den, dtype=np.float64), paired, clusters, groups, units)
     n = min(len(num), len(den))
     rule = "ratio" if orders is None else "magnitude"
     if n == 0:
@@ -323,23 +447,18 @@ def ratio_claim(id, section, claim, paper, num, den, num_name, den_name, quantit
     counts = f"n = {n} pair{'s' if n != 1 else ''}" if paired else f"n = {len(num)} / {len(den)}"
     ours = (f"{fmt(ratio)}× {ci_text} ({num_name} {fmt(mn)} / {den_name} {fmt(md)}, {counts}); "
             + extras.ours_text())
-    if withheld:
-        verdict = WITHHELD
-    else:
-        verdict = ratio_verdict(ratio, target, ci, (lo, hi)) if judged else NOT_JUDGED
+    judged_verdict, kind = ratio_judgement(ratio, target, ci, (lo, hi))
+    verdict = WITHHELD if withheld else judged_verdict if judged else NOT_JUDGED
     where = ("inside" if lo <= ratio <= hi else "outside") if np.isfinite(ratio) else "undefined for"
     around = f"{fmt(target)}× ({orders:g} orders of magnitude, log band)" if orders is not None \
         else f"{fmt(target)}×"
-    kind = _bootstrap_text(n, len(num), len(den), who, paired=paired, maps=maps)
-    ci_side = _ci_side(ci, target)
-    side = _ratio_side_text(ci_side, target, few)
-    unsure = bool(np.isfinite(ratio)) and ci_side in ("includes", "undefined")
-    if unsure and verdict != DIFFERS:
-        side += ": inconclusive"  # a number beside the judged ones, or withheld: said at the end
+    how = _bootstrap_text(n, len(num), len(den), who, paired=paired, maps=maps)
+    side = (_ratio_side_text(ci, target, kind, verdict, few) if np.isfinite(ratio)
+            else "both means are 0: the ratio is undefined (0 / 0)")
     why = (f"mean {quantity} is {fmt(mn)} for {num_name} and {fmt(md)} for {den_name}: ratio "
-           f"{fmt(ratio)}, 95% CI {ci_text} ({kind}); {where} the band [{fmt(lo)}, {fmt(hi)}] around "
+           f"{fmt(ratio)}, 95% CI {ci_text} ({how}); {where} the band [{fmt(lo)}, {fmt(hi)}] around "
            f"{around}; {side}. " + extras.why_text(num_name, den_name))
-    why = _inconclusive(why, unsure and verdict == DIFFERS)
+    why = _differs_why(why, verdict, kind)
     if withheld:
         why += f" Not judged: {withheld}"
     return ClaimResult(id, section, claim, paper, ours, verdict, why, rule, n, ratio, ci[0], ci[1],
@@ -390,8 +509,32 @@ def threshold_claim(id, section, claim, paper, overall, by_group: dict[str, floa
                        number=f"{fmt(overall)} ({groups})")
 
 
-def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claimed="positive") -> ClaimResult:
-    """Pearson ρ of ``x`` and ``y`` is claimed to be ``claimed`` ("positive"/"negative") and significant."""
+def correlation_judgement(rho: float, p: float, n: int, sign: float,
+                          paper_rho: float | None = None) -> tuple[str, str, tuple[float, float]]:
+    """(verdict, why kind, Fisher-z 95% CI) of ρ (``p``, over ``n`` rows) against a claim of ``sign``
+    (+1/−1), significant, and where given the paper's ``paper_rho`` (:data:`RULES` "correlation")."""
+    ci = fisher_ci(rho, n)
+    if p < ALPHA:
+        return (REPRODUCED if np.sign(rho) == np.sign(sign) else NOT_REPRODUCED), PLAIN, ci
+    if paper_rho is not None and np.all(np.isfinite(ci)) and not ci[0] <= paper_rho <= ci[1]:
+        return DIFFERS, RULED_OUT, ci
+    return DIFFERS, UNSURE, ci
+
+
+def ci_against(ci: tuple[float, float], value: float | None, what: str) -> str:
+    """"Fisher-z 95% CI [a, b], which includes/excludes ``what``" for a why."""
+    if not np.all(np.isfinite(ci)):
+        return "Fisher-z 95% CI n/a"
+    text = f"Fisher-z 95% CI [{fmt(ci[0])}, {fmt(ci[1])}]"
+    if value is None:
+        return text
+    return text + f", which {'includes' if ci[0] <= value <= ci[1] else 'excludes'} {what}"
+
+
+def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claimed="positive",
+                      paper_rho: float | None = None) -> ClaimResult:
+    """Pearson ρ of ``x`` and ``y`` is claimed to be ``claimed`` ("positive"/"negative") and significant
+    (``paper_rho``: the paper's ρ, which a non-significant ρ's CI may rule out)."""
     from .tables import format_rho, pearson_cell
 
     cell = pearson_cell(x, y)
@@ -399,13 +542,18 @@ def correlation_claim(id, section, claim, paper, x, y, factor, metric, *, claime
         return ClaimResult(id, section, claim, paper, cell.text, NO_DATA,
                            f"ρ of {factor} and {metric} is undefined ({cell.text}, n = {cell.n}).",
                            "correlation", cell.n)
-    sign_right = cell.rho > 0 if claimed == "positive" else cell.rho < 0
-    verdict = _ordering_verdict(sign_right, cell.p)
+    sign = 1.0 if claimed == "positive" else -1.0
+    verdict, kind, ci = correlation_judgement(cell.rho, cell.p, cell.n, sign, paper_rho)
+    sign_right = np.sign(cell.rho) == sign
+    paper_text = f"the paper's {fmt(paper_rho)}" if paper_rho is not None else ""
     why = (f"ρ of {factor} and {metric} is {format_rho(cell.rho, 1.0)} over {cell.n} rows "
-           f"({'the claimed' if sign_right else 'not the claimed'} sign), p = {fmt_p(cell.p)}.")
-    why = _inconclusive(why, verdict == DIFFERS)
+           f"({'the claimed' if sign_right else 'not the claimed'} sign), p = {fmt_p(cell.p)}"
+           f"{'' if cell.p < ALPHA else ', not significant'}; "
+           f"{ci_against(ci, paper_rho, paper_text)}.")
+    why = _differs_why(why, verdict, kind)
     return ClaimResult(id, section, claim, paper, f"ρ = {cell.text} (n = {cell.n})", verdict, why,
-                       "correlation", cell.n, cell.rho, p=cell.p, number=f"ρ = {cell.text} (n = {cell.n})")
+                       "correlation", cell.n, cell.rho, ci[0], ci[1], p=cell.p,
+                       number=f"ρ = {cell.text} (n = {cell.n})")
 
 
 def claims_frame(claims: list[ClaimResult]):

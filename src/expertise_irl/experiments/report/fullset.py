@@ -229,7 +229,7 @@ def inset_cost(at, source: str) -> str:
         p = paired(inset, PERSON, "set", metric, "theta_k", "full")
         k, f = float(p["theta_k"].mean()), float(p["full"].mean())
         text = f"{METRICS[metric].lower()} {fmt(k)} → {fmt(f)} (paired Wilcoxon p = " \
-               f"{fmt_p(wilcoxon_p(p['full'] - p['theta_k']))}, {len(p)} people)"
+               f"{fmt_p(wilcoxon_p(p['full'], p['theta_k']))}, {len(p)} people)"
         is_worse = f < k if HIGHER_IS_BETTER[metric] else f > k
         (worse if is_worse else same).append(text)
     text = f"The {source} study's in-set people, own Ψ_k → full set: "

@@ -5,7 +5,9 @@ Each run folder under the reproduction folder is a sweep with its report. Its pr
 name; neither: ``scaled``), with the observation model beside it where the run's model is not the
 paper's (``model`` in ``config.toml``). A claim judged by several runs of one protocol takes the
 verdict of the paper-scale run (the one whose folder name contains ``paper``), else of the run with
-the most rows. The paper's claims only: our methods' numbers (verdict "not judged (ours)") are left out.
+the most rows, a cell then marked "(small scale)". Beside the count of reproduced claims under each
+protocol, a second line counts them over only the claims judged under both. The paper's claims
+only: our methods' numbers (verdict "not judged (ours)") are left out.
 
 ``python -m expertise_irl.experiments.report.reproduction docs/reproduction [--write README.md]``
 prints the table, or writes it between the ``<!-- claims:start -->`` and ``<!-- claims:end -->``
@@ -31,6 +33,8 @@ PROTOCOL_ORDER = (FINISHING, DEFAULT_PROTOCOL)
 #: The order of the sections' rows.
 SECTIONS = ("VI-A", "VI-B", "VI-C", "VI-D", "VI-E", "VII-A", "VII-B", "VII-C", "VII-D")
 JUDGED = (REPRODUCED, DIFFERS, NOT_REPRODUCED)
+#: After the run of a cell taken from a run that is not paper-scale (no paper-scale run judges it).
+SMALL = " (small scale)"
 
 
 @dataclass(frozen=True)
@@ -91,9 +95,14 @@ def read_runs(folder: Path) -> list[Run]:
     return runs
 
 
+def paper_scale(name: str) -> bool:
+    """Whether the run folder ``name`` is a paper-scale run (its name contains ``paper``)."""
+    return "paper" in name
+
+
 def _preferred(runs: list[Run]) -> list[Run]:
     """The runs of one protocol, best first: paper-scale by name, then the most rows."""
-    return sorted(runs, key=lambda r: ("paper" not in r.name, -r.rows, r.name))
+    return sorted(runs, key=lambda r: (not paper_scale(r.name), -r.rows, r.name))
 
 
 def _number(rec: dict) -> str:
@@ -143,15 +152,29 @@ def count_line(protocols: list[str], rows: dict, cells: dict) -> str:
     return "Reproduced under " + "; under ".join(parts) + "."
 
 
+def both_line(rows: dict, cells: dict) -> str:
+    """"Judged under both protocols: reproduced under `fixed` N1 of M, under `scaled` N2 of M", M the
+    claims with a verdict under both (the same claims under each protocol)."""
+    judged = {p: {i for i in rows if (i, p) in cells and cells[(i, p)][1]["verdict"] in JUDGED}
+              for p in PROTOCOL_ORDER}
+    common = set.intersection(*judged.values())
+    counts = [(p, sum(cells[(i, p)][1]["verdict"] == REPRODUCED for i in common)) for p in PROTOCOL_ORDER]
+    return ("Judged under both protocols: reproduced under "
+            + ", under ".join(f"`{p}` {n} of {len(common)}" for p, n in counts) + ".")
+
+
 def matrix(folder) -> str:
     """The Markdown block: the count line, what M counts, and the claim × protocol table."""
     protocols, rows, cells = collect(read_runs(Path(folder)))
     order = sorted(rows, key=lambda i: _rank(SECTIONS, rows[i][0]))
-    lines = [count_line(protocols, rows, cells), "",
+    lines = [count_line(protocols, rows, cells), "", both_line(rows, cells), "",
              f"N of M: M counts the paper's claims with a verdict ({', '.join(JUDGED)}) under that protocol; "
-             f"a claim the rows cannot judge (\"{WITHHELD}\", \"{NO_DATA}\") is not counted. Each cell: the "
-             "verdict, our number and the run it comes from (the paper-scale run where several runs of one "
-             "protocol judge the claim). Built by `python -m expertise_irl.experiments.report.reproduction`.",
+             f"a claim the rows cannot judge (\"{WITHHELD}\", \"{NO_DATA}\") is not counted; \"judged under "
+             "both\" counts only the claims with a verdict under both protocols, so that the two numbers "
+             "compare the same claims. Each cell: the verdict, our number and the run it comes from (the "
+             "paper-scale run where several runs of one protocol judge the claim); \"(small scale)\" after "
+             "the run marks a cell no paper-scale run of that protocol judges, taken from a smaller run. "
+             "Built by `python -m expertise_irl.experiments.report.reproduction`.",
              "", "| section | claim | paper | " + " | ".join(f"`{p}`" for p in protocols) + " |",
              "|" + "---|" * (3 + len(protocols))]
     for i in order:
@@ -164,7 +187,7 @@ def matrix(folder) -> str:
             run, rec = cells[(i, p)]
             number = _number(rec)
             shown.append(f"**{_verdict(rec)}**" + (f": {number}" if number else "")
-                         + f" ([{run}]({run}/report/report.md))")
+                         + f" ([{run}]({run}/report/report.md))" + ("" if paper_scale(run) else SMALL))
         lines.append("| " + " | ".join(_cell(c) for c in [section, claim, paper, *shown]) + " |")
     return "\n".join(lines) + "\n"
 

@@ -184,15 +184,50 @@ def cluster_difference_ci(num, den, clusters, *, paired: bool, units=None, level
     return percentile_ci(a - b, level)
 
 
-def wilcoxon_p(differences) -> float:
-    """Two-sided p of the Wilcoxon signed-rank test of paired differences (NaN if all are zero)."""
+#: Paired values this close are a tie, a zero difference (before the Wilcoxon test and before the sign
+#: of a mean difference is taken): |a − b| ≤ TIE_ATOL + TIE_RTOL·max(|a|, |b|). Rows that differ only
+#: in floating-point noise (1e-16 against an exact 0) must not decide a verdict.
+TIE_RTOL, TIE_ATOL = 1e-9, 1e-12
+#: The fewest rows per side a bootstrap CI (ratio, difference) or a mix-adjusted ratio's group is
+#: computed from: the fewest pairs with which a two-sided Wilcoxon test can reach p < 0.05 (2 / 2**6).
+MIN_BOOTSTRAP_N = 6
+
+
+def paired_differences(a, b, rtol: float = TIE_RTOL, atol: float = TIE_ATOL) -> np.ndarray:
+    """``a − b`` with every tie (:data:`TIE_RTOL`, :data:`TIE_ATOL`) set to exactly 0."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    d = a - b
+    with np.errstate(invalid="ignore"):
+        tie = np.abs(d) <= atol + rtol * np.maximum(np.abs(a), np.abs(b))
+    return np.where(tie, 0.0, d)
+
+
+def wilcoxon_p(a, b, alternative: str = "two-sided") -> float:
+    """p of the Wilcoxon signed-rank test of the pairs (``a[i]``, ``b[i]``) (scipy.stats.wilcoxon;
+    ``alternative`` "less": a below b, "greater": a above b). Ties (:func:`paired_differences`) are
+    dropped before the test; NaN if every pair is a tie (or there are none)."""
     from scipy import stats
 
-    d = np.asarray(differences, dtype=np.float64)
+    d = paired_differences(a, b)
     d = d[np.isfinite(d)]
-    if len(d) == 0 or not np.any(d != 0):
+    d = d[d != 0]
+    if len(d) == 0:
         return float("nan")
-    return float(stats.wilcoxon(d, zero_method="wilcox", alternative="two-sided").pvalue)
+    return float(stats.wilcoxon(d, zero_method="wilcox", alternative=alternative).pvalue)
+
+
+def fisher_ci(rho: float, n: int, level: float = 0.95) -> tuple[float, float]:
+    """The Fisher-z CI of a Pearson ρ over ``n`` pairs: tanh(atanh ρ ± z/√(n − 3)); (NaN, NaN) if
+    n < 4 or ρ is undefined."""
+    from scipy import stats
+
+    if not np.isfinite(rho) or n < 4:
+        return (np.nan, np.nan)
+    with np.errstate(divide="ignore"):
+        z = float(np.arctanh(np.clip(rho, -1.0, 1.0)))
+    half = float(stats.norm.ppf(0.5 + level / 2)) / np.sqrt(n - 3)
+    return float(np.tanh(z - half)), float(np.tanh(z + half))
 
 
 MINUS = "−"
