@@ -26,6 +26,7 @@ from .claims import (
     _differs_why,
     ci_against,
     correlation_judgement,
+    finite_pairs,
     paired_test,
     rank_test_text,
     strip_prefix,
@@ -107,10 +108,7 @@ def table_claims(table, paper: dict, ids: dict, section: str, table_title: str, 
 def no_effect_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *, ruled_out="below",
                     who="pairs", judged=True) -> ClaimResult:
     """``a`` (paired with ``b``) is claimed *not* to be ``ruled_out`` ("below"/"above") ``b``."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    keep = np.isfinite(a) & np.isfinite(b)
-    a, b = a[keep], b[keep]
+    a, b = finite_pairs(a, b)
     n = len(a)
     if n == 0:
         return ClaimResult(id, section, claim, paper, "n/a", NO_DATA, f"no paired {who} to compare.",

@@ -287,13 +287,18 @@ def ordering_verdict(t: PairedTest) -> str:
     return DIFFERS
 
 
-def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *, claimed="below",
-                   who="pairs", judged=True) -> ClaimResult:
-    """``a`` (paired with ``b``, same order) is claimed to be ``claimed`` ("below"/"above") ``b``."""
+def finite_pairs(a, b) -> tuple[np.ndarray, np.ndarray]:
+    """``a`` and ``b`` (paired, same order) as float arrays without the pairs where either is NaN/inf."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     keep = np.isfinite(a) & np.isfinite(b)
-    a, b = a[keep], b[keep]
+    return a[keep], b[keep]
+
+
+def ordering_claim(id, section, claim, paper, a, b, a_name, b_name, quantity, *, claimed="below",
+                   who="pairs", judged=True) -> ClaimResult:
+    """``a`` (paired with ``b``, same order) is claimed to be ``claimed`` ("below"/"above") ``b``."""
+    a, b = finite_pairs(a, b)
     n = len(a)
     ours_text = f"{a_name} {fmt(a.mean()) if n else 'n/a'} vs {b_name} {fmt(b.mean()) if n else 'n/a'}"
     if n == 0:
