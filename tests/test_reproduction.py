@@ -12,8 +12,25 @@ import pytest
 from expertise_irl.experiments.report import build_report
 
 ROOT = Path(__file__).resolve().parents[1] / "docs" / "reproduction"
-RUNS = ["conditions-paper", "cardinality-paper", "optimisation-small", "optimisation-small-relative",
-        "fullset-paper"]
+#: Every committed sweep (a folder with a manifest and a report).
+RUNS = sorted(p.name for p in ROOT.iterdir() if (p / "manifest.json").is_file() and (p / "report").is_dir())
+
+
+def test_every_committed_sweep_is_checked():
+    assert {"conditions-paper", "conditions-paper-fixed", "cardinality-paper",
+            "cardinality-paper-fixed"} <= set(RUNS)
+
+
+def test_the_readme_matrix_is_what_the_claims_say():
+    """The claim × protocol table of docs/reproduction/README.md is the one the committed claims build."""
+    from expertise_irl.experiments.report.reproduction import END, START, matrix
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    committed = text.split(START, 1)[1].split(END, 1)[0]
+    assert committed.strip() == matrix(ROOT).strip()
+    count_line = matrix(ROOT).strip().splitlines()[0]
+    assert text.split("\n\n", 2)[1] == f"**{count_line}** (the claim × protocol table below).", \
+        "the count line at the top of the page"
 
 
 @pytest.mark.parametrize("run", RUNS)
