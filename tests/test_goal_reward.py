@@ -250,3 +250,13 @@ def test_a_user_study_keeps_the_floor_plans_goal_reward():
     rebuilt, mdp = _plan_mdp(text, "k")
     assert rebuilt.goal_reward_mode == "fixed"
     np.testing.assert_array_equal(mdp.reward_offset, plan.to_mdp().reward_offset)
+
+
+def test_demo_names_a_fixed_goal_reward_apart(tmp_path):
+    from expertise_irl.experiments.demo import demo_outputs
+
+    scaled = demo_outputs(tmp_path, 0, "crossroads")
+    fixed_ = demo_outputs(tmp_path, 0, "crossroads", goal_reward_mode="fixed")
+    names = ["demo-crossroads-seed0-fixed.png", "result-crossroads-seed0-fixed.json"]
+    assert [p.name for p in fixed_] == names
+    assert not set(scaled) & set(fixed_)
