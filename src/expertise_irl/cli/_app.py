@@ -227,6 +227,13 @@ def load_map(map_spec: str, goal_reward: str | None = None):
     return with_goal_reward(resolve_world(map_spec), goal_reward)
 
 
+def goal_reward_mode_of(mdp, zone_map) -> str:
+    """The map's goal reward mode; for an MDP archive, ``fixed`` if it holds a reward outside θ·φ."""
+    if zone_map is not None:
+        return zone_map.goal_reward_mode
+    return "fixed" if mdp.has_offset else "scaled"
+
+
 def _load_mdp(map_spec: str | None, mdp_path: Path | None, goal_reward: str | None = None):
     """(mdp, map or None) from exactly one of MAP or --mdp; MAP is a zone map or, when the TOML
     beside it says ``world = "warehouse"``, a floor plan."""

@@ -27,6 +27,7 @@ from ._app import (
     _solve_progress,
     _warn,
     app,
+    goal_reward_mode_of,
     handles_errors,
     load_map,
     out,
@@ -250,18 +251,11 @@ def infer(
                          setup=setup)
     settings = {"command": "infer", "method": method, **_source(map_spec, mdp_path, zone_map, demos),
                 "seed": seed, "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-                "goal_reward_mode": _goal_reward_mode(mdp, zone_map), "gamma": mdp.gamma}
+                "goal_reward_mode": goal_reward_mode_of(mdp, zone_map), "gamma": mdp.gamma}
     doc = document(run, feature_names=mdp.feature_names, settings=settings,
                    data={"episodes": trajs.n_episodes, "actions": len(trajs)}, samples_path=samples_path)
     write_json(out_path, doc)
     _report_result(doc, out_path, len(trajs))
-
-
-def _goal_reward_mode(mdp, zone_map) -> str | None:
-    """The map's goal reward mode; for an MDP archive, ``fixed`` if it holds a reward outside θ·φ."""
-    if zone_map is not None:
-        return zone_map.goal_reward_mode
-    return "fixed" if mdp.has_offset else "scaled"
 
 
 def _source(map_spec, mdp_path, zone_map, demos) -> dict:

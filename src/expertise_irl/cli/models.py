@@ -20,6 +20,7 @@ from ._app import (
     _say,
     _solve_progress,
     app,
+    goal_reward_mode_of,
     handles_errors,
     out,
     prepare_solver,
@@ -101,8 +102,7 @@ def compare_models_command(
             "settings": {"demos": str(demos), "demos_digest": file_digest(demos),
                          "mdp": str(mdp_path) if mdp_path else str(map_spec), "thetas": thetas,
                          "betas": betas, "n_hypotheses": len(hyp), "prior": "uniform", "tol": tol,
-                         "goal_reward_mode": zone_map.goal_reward_mode if zone_map is not None
-                         else ("fixed" if mdp.has_offset else "scaled")},
+                         "goal_reward_mode": goal_reward_mode_of(mdp, zone_map)},
             "run_time_s": elapsed,
         }
         from ..results import finite_or_null

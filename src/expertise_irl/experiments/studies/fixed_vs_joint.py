@@ -179,8 +179,8 @@ def solve_padded(mdp, theta, beta, model: str = "maxent"):
 
 def environment(cfg: ConditionsConfig, seed: int, e: int):
     """``(zone_map, mdp)`` of environment ``e`` (the same cells under either protocol)."""
-    return _map(int(seed), int(e), cfg.map_min_size, cfg.map_max_size,
-                getattr(cfg, "goal_reward_mode", "scaled"), float(getattr(cfg, "goal_bonus", 10.0)))
+    return _map(int(seed), int(e), cfg.map_min_size, cfg.map_max_size, cfg.goal_reward_mode,
+                float(cfg.goal_bonus))
 
 
 def theta_k(cfg: ConditionsConfig, seed: int, e: int, r: int, k: int) -> np.ndarray:
