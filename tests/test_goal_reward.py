@@ -241,15 +241,17 @@ def test_study_rows_record_the_protocol():
 
 
 def test_a_user_study_keeps_the_floor_plans_goal_reward():
-    """A study's engine rebuilds each floor plan from the study data: the protocol travels too."""
-    from expertise_irl.userstudy.run import _plan_entry
-    from expertise_irl.userstudy.study import _plan_mdp
+    """A study's engine rebuilds each map from the study data: the protocol travels too."""
+    from expertise_irl.userstudy.study import _plan_mdp, world_entry
+    from expertise_irl.worlds.zones import parse_map
 
     plan = parse_floor_plan("S..G\n.x..\n", name="p", goal_reward_mode="fixed", goal_bonus=3.0)
-    text = json.dumps({"maps": {"k": _plan_entry(plan)}})
-    rebuilt, mdp = _plan_mdp(text, "k")
-    assert rebuilt.goal_reward_mode == "fixed"
-    np.testing.assert_array_equal(mdp.reward_offset, plan.to_mdp().reward_offset)
+    zone = parse_map("S..G\n.x..\n", name="z", goal_reward_mode="fixed", goal_bonus=3.0)
+    for world in (plan, zone):
+        text = json.dumps({"maps": {"k": world_entry(world)}})
+        rebuilt, mdp = _plan_mdp(text, "k")
+        assert type(rebuilt) is type(world) and rebuilt.goal_reward_mode == "fixed"
+        np.testing.assert_array_equal(mdp.reward_offset, world.to_mdp().reward_offset)
 
 
 def test_demo_names_a_fixed_goal_reward_apart(tmp_path):

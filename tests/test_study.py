@@ -206,6 +206,27 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
         "optimal_reached_goal",
         "filled_gaps",
         "snapped_samples",
+        "beta_mean",
+        "beta_median",
+        "beta_geomean",
+        "beta_q05",
+        "beta_q95",
+        "share",
+        "goal_reached",
+        "steps_to_goal",
+        "cost_theta_hat",
+        "feature_length",
+        "feature_restricted",
+        "feature_road",
+        "optimal_steps_to_goal",
+        "optimal_cost_theta_hat",
+        "optimal_feature_length",
+        "optimal_feature_restricted",
+        "optimal_feature_road",
+        "heldout_split",
+        "heldout_actions",
+        "heldout_log_likelihood_per_action",
+        "warnings",
     ]
     p1, p3 = rows[0], rows[2]
     assert (p1["path_length"], p1["path_cost"], p1["road_cells"], p1["direction_changes"]) == (
@@ -227,13 +248,14 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
     doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
     ll = np.array([h["log_likelihood"] for h in doc["hypotheses"]], dtype=float)
     per_task = [np.array(doc["tasks"][i]["beta_hat"]) for i in range(2)]
-    assert doc["method"] == "discrete" and len(doc["hypotheses"]) == 95
+    assert doc["method"] == "discrete" and len(doc["hypotheses"]) == 19 * len(doc["settings"]["beta_grid"])
     p = np.array([h["probability"] for h in doc["hypotheses"]])
     np.testing.assert_allclose(p, np.exp(ll - ll.max()) / np.exp(ll - ll.max()).sum(), rtol=1e-9)
     assert doc["beta_hat"] != pytest.approx(per_task[0]) and doc["beta_hat"] != pytest.approx(per_task[1])
     assert (out / "participants" / "P3" / "P3.png").read_bytes()[:4] == b"\x89PNG"
     md = (out / "study.md").read_text().splitlines()
-    assert sum(ln.startswith(("| P1 |", "| P2 |", "| P3 |")) for ln in md) == 6  # Tables V and VI
+    # Estimates, every world's path counts, Tables V and VI: a row each per participant.
+    assert sum(ln.startswith(("| P1 |", "| P2 |", "| P3 |")) for ln in md) == 12
     before = (out / "study.csv").read_bytes()
     # A third run finds everything done and writes the same tables.
     res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
@@ -252,7 +274,7 @@ def assert_refused_by_name(study_dir: Path, out: Path, monkeypatch) -> None:
     m = study_dir / "manifest.csv"
     fresh = f"use another --out, or delete {out} to start again"
     assert_input_error(invoke("study", m, "--out", out, "--betas", "0.1,1", "--fill-gaps"),
-                       "holds a study run with --betas paper-real, no --fill-gaps; this command has "
+                       "holds a study run with --betas auto, no --fill-gaps; this command has "
                        "--betas 0.1,1, --fill-gaps;", fresh)
     text = (study_dir / "p2.csv").read_text()
     write(study_dir / "p2.csv", text.replace(",0.5,0.5\n", ",0.55,0.5\n", 1))
@@ -290,7 +312,8 @@ def test_bundled_recording_is_what_its_generator_command_writes(tmp_path):
 
 @pytest.mark.slow
 def test_bundled_study_recovers_the_ordering_of_expertise(tmp_path):
-    res = invoke("study", "example", "--out", tmp_path / "s", "--fill-gaps", "--model", "maxent-relative")
+    res = invoke("study", "example", "--out", tmp_path / "s", "--fill-gaps", "--model", "maxent-relative",
+                 "--betas", "paper-real")
     assert res.exit_code == 0, res.output
     est = {r["participant"]: r for r in read_csv(tmp_path / "s" / "study.csv")}
     truth = {r["participant"]: float(r["beta"]) for r in read_csv(EXAMPLE / "truth.csv")}
@@ -388,7 +411,8 @@ def test_study_models_evidence_is_the_brute_force_sum_over_tasks_and_resumes(stu
 
     add_three_episode_participant(study_dir)
     out = study_dir / "out_models"
-    args = ("study", study_dir / "manifest.csv", "--out", out, "--models", ",".join(MODELS), "--workers", "1")
+    args = ("study", study_dir / "manifest.csv", "--out", out, "--models", ",".join(MODELS), "--workers", "1",
+            "--betas", "paper-real")
     res = invoke(*args)
     assert res.exit_code == 0, res.output
     # Brute force: per row, each hypothesis's log-likelihood from a fresh solve of its floor plan
@@ -415,6 +439,7 @@ def test_study_models_evidence_is_the_brute_force_sum_over_tasks_and_resumes(stu
         "best_model",
         "log_bf_maxent",
         "log_bf_maxent-relative",
+        "heldout_split",
         "heldout_episodes",
         "heldout_actions",
         "heldout_per_action_maxent",
@@ -429,28 +454,41 @@ def test_study_models_evidence_is_the_brute_force_sum_over_tasks_and_resumes(stu
         for m in MODELS:
             assert float(r[f"log_evidence_{m}"]) == pytest.approx(ev[m], abs=1e-8)
             assert float(r[f"log_bf_{m}"]) == pytest.approx(ev[m] - ev[best], abs=1e-8)
-    # Held out: P4's last episode, predicted from the posterior given its first two.
+    # Held out, P4 (one task of 3 episodes): each episode in turn, predicted from the other two.
     (tr4,) = [tr for pid, _, tr in rows if pid == "P4"]
-    fit, test = tr4.first(2), Trajectories(tr4.episode[12:], tr4.step[12:], tr4.state[12:], tr4.action[12:])
-    assert test.n_episodes == 1 and set(test.episode.tolist()) == {tr4.episode_ids[-1]}
+    episodes = [Trajectories(tr4.episode[k:k + 6], tr4.step[k:k + 6], tr4.state[k:k + 6], tr4.action[k:k + 6])
+                for k in (0, 6, 12)]
     p4 = got[3]
-    assert (p4["heldout_episodes"], p4["heldout_actions"]) == ("1", "6")
+    assert (p4["heldout_split"], p4["heldout_episodes"], p4["heldout_actions"]) == ("episode", "3", "18")
     for m in MODELS:
-        post = start["a.txt", m].update(fit).probabilities
-        predictive = float(logsumexp(start["a.txt", m].update(test).log_likelihood, b=post))
-        assert float(p4[f"heldout_per_action_{m}"]) == pytest.approx(predictive / 6, abs=1e-8)
-    # One-episode tasks have nothing to hold out (P3 has two tasks of one episode each).
-    for r in got[:3]:
-        assert r["heldout_episodes"] == "0" and r["heldout_per_action_maxent"] == ""
+        b = start["a.txt", m]
+        ell = [b.update(e).log_likelihood for e in episodes]
+        total = 0.0
+        for k in range(3):
+            rest = sum(ell[u] for u in range(3) if u != k)
+            total += float(logsumexp(ell[k], b=np.exp(rest - logsumexp(rest))))
+        assert float(p4[f"heldout_per_action_{m}"]) == pytest.approx(total / 18, abs=1e-8)
+    # P3 (two tasks of one episode each): each task in turn, predicted from the other.
+    p3 = got[2]
+    assert (p3["heldout_split"], p3["heldout_episodes"], p3["heldout_actions"]) == ("task", "2", "12")
+    for m in MODELS:
+        ell = [start[name, m].update(tr).log_likelihood for pid, name, tr in rows if pid == "P3"]
+        total = sum(float(logsumexp(ell[k], b=np.exp(ell[1 - k] - logsumexp(ell[1 - k])))) for k in range(2))
+        assert float(p3[f"heldout_per_action_{m}"]) == pytest.approx(total / 12, abs=1e-8)
+    # One task of one episode has nothing to hold out.
+    for r in got[:2]:
+        assert r["heldout_split"] == "none" and r["heldout_per_action_maxent"] == ""
     # result.json: the main result is --model's default (maxent); model_evidence beside it.
     doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
     assert doc["settings"]["model"] == "maxent"
     assert doc["log_evidence"] == pytest.approx(evidence["P3", "maxent"], abs=1e-8)
     me = doc["model_evidence"]
     assert [f["model"] for f in me["models"]] == list(MODELS) and me["n_hypotheses"] == H
-    assert "at least 2 episodes" in me["unavailable"]["heldout_log_likelihood_per_action"]
+    assert me["heldout"]["split"] == "task" and not me["unavailable"]
+    me1 = json.loads((out / "participants" / "P1" / "result.json").read_text())["model_evidence"]
+    assert "needs a task with 2 episodes" in me1["unavailable"]["heldout_log_likelihood_per_action"]
     md = (out / "study.md").read_text()
-    assert "## Model evidence" in md and sum(ln.startswith("| P") for ln in md.splitlines()) == 12
+    assert "## Model evidence" in md and sum(ln.startswith("| P") for ln in md.splitlines()) == 4 * 5
     # The extra phase is its own sweep; a rerun runs nothing and writes the same table.
     assert (out / "engine" / "inference-maxent-relative").is_dir()
     assert not (out / "engine" / "inference-maxent").exists()  # --model's sweep serves maxent

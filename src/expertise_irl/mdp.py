@@ -319,8 +319,16 @@ class TabularMDP:
         path = Path(path)
         if not path.is_file():
             raise InputError(f"{path}: no such file")
+        return cls.from_bytes(path.read_bytes(), source=str(path))
+
+    @classmethod
+    def from_bytes(cls, data: bytes, *, source: str = "<mdp>") -> TabularMDP:
+        """An MDP archive's content (the bytes of a ``.npz`` file); ``source`` names it in messages."""
+        import io
+
+        path = source
         try:
-            with np.load(path, allow_pickle=False) as z:
+            with np.load(io.BytesIO(data), allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
         except ValueError as exc:
             if "pickle" in str(exc):

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from ._app import ModelOption, _say, app, err, handles_errors, prepare_solver
+from ._app import ModelOption, _say, _warn, app, err, handles_errors, prepare_solver
 from .recordings import FillGapsOption, MaxDtOption, RateOption, SnapOption
 
 #: Bundled example studies: name -> folder inside the package.
@@ -32,8 +32,9 @@ def study(
         str,
         typer.Argument(
             metavar="MANIFEST",
-            help="Manifest CSV participant,map,recording (or demos), paths relative to it; "
-            "or 'example', the bundled study.",
+            help="Manifest CSV participant,map,recording (or demos), paths relative to it; a map is a "
+            "floor plan, a zone map, a bundled map's name or an .npz MDP archive; other columns are "
+            "carried into the tables. Or 'example', the bundled study.",
         ),
     ],
     out: Annotated[
@@ -43,8 +44,10 @@ def study(
         str, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values.")
     ] = "paper-real",
     betas: Annotated[
-        str, typer.Option(help="B: a preset (paper-real, paper-sim) or temperatures.")
-    ] = "paper-real",
+        str, typer.Option(help="B: auto (from the maps' soft values: 1e-3 to 10 times the median gap "
+                          "between a state's two best actions, 3 per decade), a preset (paper-real, "
+                          "paper-sim) or temperatures.")
+    ] = "auto",
     method: Annotated[
         str,
         typer.Option(
@@ -63,6 +66,20 @@ def study(
         str | None, typer.Option(help="Dask scheduler address, e.g. tcp://HOST:8786.")
     ] = None,
     model: ModelOption = "maxent",
+    share: Annotated[
+        str,
+        typer.Option(help="What a participant's tasks share: both (one θ and one β) or beta (one β, "
+                     "a θ per task: tasks with different rewards)."),
+    ] = "both",
+    figures: Annotated[
+        str,
+        typer.Option(help="Participant figures to draw: all, none, or N (the first N participants). "
+                     "DIR/study.png is always drawn."),
+    ] = "all",
+    group_by: Annotated[
+        str | None,
+        typer.Option(help="A manifest column: study.md compares β between its groups (Mann–Whitney)."),
+    ] = None,
     models: Annotated[
         str | None,
         typer.Option(
@@ -72,20 +89,23 @@ def study(
         ),
     ] = None,
 ) -> None:
-    """Run every participant of a study: estimates, Tables V–VI, a figure per participant.
+    """Run every participant of a study: estimates, warnings, a held-out check, Tables V–VI, figures.
 
     Writes DIR/study.csv and study.md (one row per participant, the joint posterior over
-    their tasks), DIR/tasks.csv (one row per manifest row) and DIR/participants/ID/result.json
-    and ID.png; with --models, DIR/models.csv too. Floor plans shared by participants are
-    solved once; a second run on the same DIR resumes (docs/user-studies.md).
+    their tasks), DIR/tasks.csv (one row per manifest row), DIR/study.png and
+    DIR/participants/ID/result.json and ID.png; with --models, DIR/models.csv too. Maps shared
+    by participants are solved once; a second run on the same DIR resumes, and may change
+    --figures and --group-by (docs/user-studies.md).
     """
     from ..userstudy.evidence import parse_models
-    from ..userstudy.run import StudyOptions
-    from ..userstudy.study import METHODS
+    from ..userstudy.run import ReportOptions, StudyOptions
+    from ..userstudy.study import METHODS, SHARES
 
     path = resolve_manifest(manifest)
     if method not in METHODS:
         raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    if share not in SHARES:
+        raise InputError(f"--share must be one of {', '.join(SHARES)}, got {share!r}")
     if models is not None and method != "discrete":
         raise InputError(f"--models needs --method discrete (got --method {method})")
     compared = parse_models(models) if models is not None else ()
@@ -99,45 +119,77 @@ def study(
         snap=snap,
         model=model,
         models=compared,
+        share=share,
     )
-    _print_outcome(_run(path, out, opts, workers, scheduler), out)
+    report = ReportOptions(figures=figures, group_by=group_by)
+    _print_outcome(_run(path, out, opts, workers, scheduler, report), out)
 
 
-def _run(path: Path, out: Path, opts, workers: int | None, scheduler: str | None):
+def _run(path: Path, out: Path, opts, workers: int | None, scheduler: str | None, report):
     """Run the study, reporting progress; a failed task is printed and exits with 1."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
     from ..userstudy.run import StudyFailed, run_study
 
     def on_task(phase, total, todo, res) -> None:
         if res is None:
             err.print(f"{phase}: {total} task(s), {total - todo} already done", highlight=False)
 
+    bar = Progress(TextColumn("figures"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                   console=err, transient=True)
+    bar_task = None
+
+    def on_figure(done: int, total: int) -> None:
+        nonlocal bar_task
+        if bar_task is None:
+            bar.start()
+            bar_task = bar.add_task("figures", total=total)
+        bar.update(bar_task, completed=done)
+
     prepare_solver(measure=scheduler is None)  # local workers read this machine's lane width
     try:
-        outcome = run_study(path, out, opts, workers=workers, scheduler=scheduler, on_task=on_task)
+        outcome = run_study(path, out, opts, workers=workers, scheduler=scheduler, on_task=on_task,
+                            report=report, on_figure=on_figure)
     except StudyFailed as exc:
         for key, message in exc.failures:
             err.print(f"error: {exc.phase} task {key} failed: {message}", markup=False, highlight=False)
         _say(f"{len(exc.failures)} {exc.phase} task(s) failed; run the same command again to retry them")
         raise typer.Exit(1) from None
+    finally:
+        bar.stop()
     return outcome
 
 
 def _print_outcome(outcome, out: Path) -> None:
-    """One line per participant (and per model comparison), then what was written."""
+    """One line per participant (and per model comparison), the warnings, then what was written."""
+    import math
+
     names = outcome.feature_names
     for r in outcome.participants:
-        theta = ", ".join(f"{r[f'theta_{f}']:.2f}" for f in names)
+        own = [f for f in names if not math.isnan(r.get(f"theta_{f}", math.nan))]
+        theta = ("[" + ", ".join(f"{f} {r[f'theta_{f}']:.2f}" for f in own) + "]") if own else "per task"
+        held = r["heldout_log_likelihood_per_action"]
         _say(
-            f"{r['participant']}: β̂ = {r['beta_hat']:.3g}, θ̂ = [{theta}], path length {r['path_length']} "
-            f"(optimal {r['optimal_path_length']}), filled gaps {r['filled_gaps']}, "
-            f"snapped samples {r['snapped_samples']}"
+            f"{r['participant']}: β̂ = {r['beta_hat']:.3g} (90% {r['beta_q05']:.3g}–{r['beta_q95']:.3g}), "
+            f"θ̂ = {theta}, path length {r['path_length']} (optimal {r['optimal_path_length']}), "
+            f"held-out {'n/a' if math.isnan(held) else f'{held:.3f}'} nats/action"
+            + (f", filled gaps {r['filled_gaps']}, snapped samples {r['snapped_samples']}"
+               if r["filled_gaps"] or r["snapped_samples"] else "")
+            + (f", {r['warnings']} warning(s)" if r["warnings"] else "")
         )
     for pid, ev in (outcome.evidence or {}).items():
         bfs = ", ".join(f"{f['model']} {f['log_bayes_factor']:.2f}" for f in ev["models"])
         _say(f"{pid}: best model {ev['best'] or 'n/a'} (log Bayes factors vs best: {bfs})")
-    wrote = "study.csv, study.md, tasks.csv" + (", models.csv" if outcome.evidence else "")
+    n_warn = sum(r["warnings"] for r in outcome.participants)
+    if n_warn:
+        _warn(f"{n_warn} warning(s) for {sum(1 for r in outcome.participants if r['warnings'])} "
+              f"participant(s): see {out}/study.md (Warnings) and each result.json's diagnostics")
+    wrote = "study.csv, study.md, tasks.csv, study.png" + (", models.csv" if outcome.evidence else "")
+    t = outcome.timing or {}
     _say(
         f"wrote {out}/{wrote} and participants/: {len(outcome.participants)} "
-        f"participants; {outcome.tasks_run} engine task(s) run, {outcome.tasks_skipped} already done "
-        f"({outcome.wall_time_s:.1f} s)"
+        f"participants, {t.get('figures', 0)} figure(s); {outcome.tasks_run} engine task(s) run, "
+        f"{outcome.tasks_skipped} already done ({outcome.wall_time_s:.1f} s: inference "
+        f"{t.get('inference_s', 0):.1f} s, reports {t.get('reports_s', 0):.1f} s, figures "
+        f"{t.get('figures_s', 0):.1f} s)"
     )

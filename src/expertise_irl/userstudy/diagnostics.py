@@ -66,12 +66,14 @@ PROBE_BETA = 1e-3
 AUTO_LOW, AUTO_HIGH, AUTO_PER_DECADE = 1e-3, 10.0, 3
 
 
-def _as_mdps(mdps) -> list[TabularMDP]:
+def _as_mdps(mdps, *, same_features: bool = True) -> list[TabularMDP]:
     if isinstance(mdps, TabularMDP):
         return [mdps]
     out = list(mdps)
     if not out:
         raise InputError("no tasks given: need at least one MDP")
+    if not same_features:
+        return out
     k = out[0].n_features
     for m in out[1:]:
         if m.n_features != k:
@@ -184,7 +186,8 @@ def auto_beta_grid(mdps: TabularMDP | Sequence[TabularMDP], thetas, *, model: st
 
     Args:
         mdps: the study's tasks (one per distinct map is enough; repeats only weight the median).
-        thetas: ``[n_theta, K]`` the Θ of the hypothesis set.
+        thetas: ``[n_theta, K]`` the Θ of the hypothesis set, or ``{K: [n_theta, K]}`` for maps with
+            different numbers of features (each map's gaps under the Θ of its K, pooled).
         model: the study's observation model; checked, but the gaps are those of Q*, which every
             model's Q approaches as β → 0 (module docstring), so it does not change the grid.
         low, high: the grid's ends as multiples of the median gap g.
@@ -199,12 +202,13 @@ def auto_beta_grid(mdps: TabularMDP | Sequence[TabularMDP], thetas, *, model: st
         matters under any θ), so there is no scale to build a grid on.
     """
     check_model(model)
-    ms = _as_mdps(mdps)
+    ms = _as_mdps(mdps, same_features=not isinstance(thetas, dict))
     if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
         raise InputError(f"the β grid's ends must satisfy 0 < low < high, got low={low:g}, high={high:g}")
     if isinstance(per_decade, bool) or not isinstance(per_decade, int | np.integer) or per_decade < 1:
         raise InputError(f"per_decade must be a whole number >= 1, got {per_decade!r}")
-    gaps = np.concatenate([q_gaps(m, thetas) for m in ms])
+    gaps = np.concatenate([q_gaps(m, thetas[m.n_features] if isinstance(thetas, dict) else thetas)
+                           for m in ms])
     if gaps.size == 0:
         raise InputError("no state of these tasks offers two actions of different value under any θ "
                          "of the set: there is no Q gap to scale a β grid by; give the β's explicitly")

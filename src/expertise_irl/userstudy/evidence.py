@@ -2,22 +2,18 @@
 
 For every model m named by ``--models`` the study's discrete inference phase runs once more
 with that model (its own engine sweep, ``DIR/engine/inference-<m>``; the sweep of ``--model``
-is the main one), and for each participant, over the hypothesis set Ψ with a uniform prior
-and all their tasks t:
+is the main one), and for each participant, over the hypothesis set Ψ with the study's prior
+(uniform, with any feature constant at 0 on all their tasks kept at θ_i = 0) and all their
+tasks, shared as ``--share`` says (:mod:`.posteriors`):
 
-- **log evidence** ``log P(Ξ | m) = logsumexp_h(Σ_t log P(Ξ_t | h, m)) − log |Ψ|``;
+- **log evidence** ``log P(Ξ | m)``: ``logsumexp_h(log P(h) + Σ_t log P(Ξ_t | h, m))`` with
+  ``--share both``; with ``--share beta`` the product over tasks of each task's θ-marginal;
 - **log Bayes factor** against the participant's best model, ``log P(Ξ | m) − max_m'
   log P(Ξ | m')`` (≤ 0; 0 for the best), read as in ``compare-models``;
-- **held-out log-likelihood per action**: the last episode (in file order) of every task
-  with at least two episodes is held out, the posterior from everything else (the other
-  episodes and every single-episode task) predicts it:
-  ``(logsumexp_h(ll_fit + ll_test) − logsumexp_h(ll_fit)) / n_test_actions``. A
-  participant without a task of two episodes has no held-out check (``unavailable`` says
-  why).
-
-The held-out split rides on the discrete phase: the study's engine data gets, for each
-manifest row with two or more episodes, two more rows (``part`` = ``fit`` / ``heldout``),
-whose log-likelihoods the phase returns like any row's.
+- **held-out log-likelihood per action**: the study's held-out check
+  (:func:`.posteriors.heldout_check`: leave-one-episode-out within tasks of ≥ 2 episodes,
+  else leave-one-task-out with ``--share both``) under each model. ``unavailable`` says why a
+  participant has none.
 """
 
 from __future__ import annotations
@@ -27,12 +23,10 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.special import logsumexp
 
 from ..errors import InputError
 from ..inference.evidence import bayes_factor_reading, check_model_list
-
-FIT, HELDOUT = "fit", "heldout"
+from . import posteriors
 
 
 def parse_models(spec: str) -> tuple[str, ...]:
@@ -48,92 +42,62 @@ def check_models(models: Sequence[str], method: str) -> None:
         parse_models(",".join(models))
 
 
-def split_rows(tasks: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The extra engine rows: each row with ≥ 2 episodes as its fit part and its last episode."""
-    extra = []
-    n = max((t["task"] for t in tasks), default=-1) + 1
-    for t in tasks:
-        ids = list(dict.fromkeys(t["episodes"]))
-        if len(ids) < 2:
-            continue
-        last = np.asarray(t["episodes"]) == ids[-1]
-        for part, mask in ((FIT, ~last), (HELDOUT, last)):
-            row = {k: t[k] for k in ("participant", "map")}
-            for k in ("episodes", "steps", "states", "actions"):
-                row[k] = np.asarray(t[k])[mask].tolist()
-            row.update({"task": n + len(extra), "part": part, "row": t["task"]})
-            extra.append(row)
-    return extra
-
-
-def _lse(x: np.ndarray) -> float:
-    with np.errstate(divide="ignore"):
-        return float(logsumexp(x))
-
-
-def participant_evidence(
-    tasks: Sequence[dict[str, Any]], lls: dict[str, dict[int, np.ndarray]], hypotheses
-) -> dict[str, dict[str, Any]]:
+def participant_evidence(manifest, lls: dict[str, dict[int, np.ndarray]], hypotheses, share: str = "both",
+                         zero_features: dict[str, list[int]] | None = None) -> dict[str, dict[str, Any]]:
     """Per participant, the ``model_evidence`` of their ``result.json``.
 
-    ``tasks`` are the engine rows (manifest rows and their parts, :func:`split_rows`);
-    ``lls[m][row]`` is the ``[H]`` log-likelihood of engine row ``row`` under model ``m``.
+    ``lls[m][row]`` is the ``[E, H]`` per-episode log-likelihood of manifest row ``row`` under
+    model ``m``; ``zero_features[pid]`` the features kept at θ_i = 0 for that participant.
     """
-    H = len(hypotheses)
-    rows = [t for t in tasks if "part" not in t]
-    parts = {(t["row"], t["part"]): t for t in tasks if "part" in t}
+    zero_features = zero_features or {}
     out = {}
-    for pid in dict.fromkeys(t["participant"] for t in rows):
-        mine = [t for t in rows if t["participant"] == pid]
-        held = [parts[(t["task"], HELDOUT)] for t in mine if (t["task"], HELDOUT) in parts]
-        fits = []
+    for pid in manifest.participants:
+        mine = manifest.tasks_of(pid)
+        hyp = hypotheses[mine[0].mdp.n_features] if isinstance(hypotheses, dict) else hypotheses
+        H = len(hyp)
+        zero = zero_features.get(pid, [])
+        actions = [[len(s) for s, _ in t.trajectories.episodes()] for t in mine]
+        fits, held = [], None
         for m, ll in lls.items():
-            total = np.sum([ll[t["task"]] for t in mine], axis=0)
-            z = _lse(total)
-            p = np.exp(total - z) if math.isfinite(z) else None  # the posterior (uniform prior)
-            fit = {
-                "model": m,
-                "log_evidence": z - math.log(H),
-                "beta_hat": float(p @ hypotheses.beta) if p is not None else math.nan,
-                "theta_hat": (p @ hypotheses.theta).tolist() if p is not None else None,
-                "heldout_log_likelihood_per_action": None,
-            }
-            if held:
-                ll_fit = np.sum(
-                    [ll[parts[(t["task"], FIT)]["task"]] if (t["task"], FIT) in parts else ll[t["task"]]
-                     for t in mine],
-                    axis=0,
-                )
-                ll_test = np.sum([ll[h["task"]] for h in held], axis=0)
-                z_fit = _lse(ll_fit)
-                if math.isfinite(z_fit):
-                    n_test = sum(len(h["actions"]) for h in held)
-                    fit["heldout_log_likelihood_per_action"] = (_lse(ll_fit + ll_test) - z_fit) / n_test
-            fits.append(fit)
+            ep = [ll[t.index] for t in mine]
+            task_ll = [e.sum(axis=0) for e in ep]
+            z = posteriors.log_evidence(task_ll, hyp, share, zero)
+            held = posteriors.heldout_check(ep, actions, hyp, share, zero)
+            if share == "both" and math.isfinite(z):
+                p = np.exp(np.sum(task_ll, axis=0) + posteriors.log_prior_joint(hyp, zero) - z)
+                beta_hat, theta_hat = float(p @ hyp.beta), (p @ hyp.theta).tolist()
+            elif math.isfinite(z):
+                sb = posteriors.shared_beta_posterior(task_ll, hyp, zero)
+                beta_hat, theta_hat = sb.mean_beta, None
+            else:
+                beta_hat, theta_hat = math.nan, None
+            fits.append({"model": m, "log_evidence": z, "beta_hat": beta_hat, "theta_hat": theta_hat,
+                         "heldout_log_likelihood_per_action": held["per_action"]})
         best = max(f["log_evidence"] for f in fits)
         best_model = next(f["model"] for f in fits if f["log_evidence"] == best) if best > -math.inf else None
         for f in fits:
             f["log_bayes_factor"] = f["log_evidence"] - best if best_model else math.nan
             f["reading"] = bayes_factor_reading(f["log_bayes_factor"]) if best_model else None
-        episodes = sum(len(dict.fromkeys(t["episodes"])) for t in mine)
+        episodes = sum(t.trajectories.n_episodes for t in mine)
+        test_episodes = (held["units"] if held["split"] == "episode"
+                         else sum(t.trajectories.n_episodes for t in mine) if held["split"] == "task" else 0)
         doc: dict[str, Any] = {
             "best": best_model,
-            "prior": "uniform",
+            "prior": "uniform" + (f" (θ_{', θ_'.join(str(i) for i in zero)} kept at 0)" if zero else ""),
             "n_hypotheses": H,
+            "share": share,
             "models": fits,
             "heldout": {
-                "rule": "the last episode of each task with at least 2 episodes",
-                "fit_episodes": episodes - len(held),
-                "test_episodes": len(held),
-                "test_actions": sum(len(h["actions"]) for h in held),
+                "rule": posteriors.HELDOUT_RULE,
+                "split": held["split"],
+                "fit_episodes": episodes,
+                "test_episodes": test_episodes,
+                "test_actions": held["actions"],
             },
             "unavailable": {},
         }
-        if not held:
-            doc["unavailable"]["heldout_log_likelihood_per_action"] = (
-                f"the held-out check needs a task with at least 2 episodes; {pid}'s "
-                f"{len(mine)} task(s) have {episodes} episode(s) in all"
-            )
+        if held["unavailable"]:
+            doc["unavailable"]["heldout_log_likelihood_per_action"] = f"{pid}: {held['unavailable']}"
         out[pid] = doc
     return out
 
@@ -144,6 +108,7 @@ def models_columns(models: Sequence[str]) -> list[str]:
         *(f"log_evidence_{m}" for m in models),
         "best_model",
         *(f"log_bf_{m}" for m in models),
+        "heldout_split",
         "heldout_episodes",
         "heldout_actions",
         *(f"heldout_per_action_{m}" for m in models),
@@ -157,6 +122,7 @@ def models_rows(evidence: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
         r: dict[str, Any] = {
             "participant": pid,
             "best_model": doc["best"] or "",
+            "heldout_split": doc["heldout"]["split"],
             "heldout_episodes": doc["heldout"]["test_episodes"],
             "heldout_actions": doc["heldout"]["test_actions"],
         }
@@ -181,8 +147,8 @@ def evidence_markdown(evidence: dict[str, dict[str, Any]], models: Sequence[str]
         f"Log evidence log Σ_h P(Ξ | h) P(h) of all of a participant's tasks over the {H} hypotheses "
         "(uniform prior), per observation model; log BF = log evidence − the participant's best "
         "(0 for the best; 2 |log BF| < 2 barely worth mentioning, 2–6 positive, 6–10 strong, "
-        "> 10 very strong). Held-out: log-likelihood per action of the last episode of each task with "
-        f"at least 2 episodes, predicted from the rest. The tables above use --model {main_model}.",
+        "> 10 very strong). Held-out: log-likelihood per held-out action "
+        f"({posteriors.HELDOUT_RULE}). The tables above use --model {main_model}.",
         "",
         "| participant | " + " | ".join(f"log evidence ({m})" for m in models) + " | best | "
         + " | ".join(f"log BF ({m})" for m in models) + " | held-out actions | "

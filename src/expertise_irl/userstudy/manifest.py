@@ -1,12 +1,21 @@
-"""A study's manifest: who did which task, on which floor plan, recorded where.
+"""A study's manifest: who did which task, on which map, recorded where.
 
 A manifest is a CSV with a header and the columns ``participant``, ``map`` and
 ``recording`` (a Cartesian recording ``episode,t,x,y``) or ``demos`` (the project's
 demonstration CSV, ``episode,step,x,y[,heading]`` or ``episode,step,state,action``); a
-manifest may hold both columns, and each row then fills exactly one. Paths are relative to
-the manifest's folder. Several rows of one participant are several tasks (maps,
-specifications or start points); participants keep the order of their first row. Other
-columns are ignored.
+manifest may hold both columns, and each row then fills exactly one. ``map`` is any task
+the project reads: a floor plan (a text map whose TOML says ``world = "warehouse"``), a
+zone map, a bundled map's name, or an ``.npz`` MDP archive (the format ``infer --mdp``
+reads). A recording needs a floor plan (its metres become cells); demonstrations fit every
+world. Paths are relative to the manifest's folder. Several rows of one participant are
+several tasks (maps, specifications or start points); participants keep the order of their
+first row. A participant's tasks must have the same features, in the same order (their θ means
+one thing on all of them); participants may differ (a study's θ columns are the union of its
+features, empty where a participant's tasks lack one).
+
+Other columns (a condition, a group, an instruction) are carried verbatim into ``tasks.csv``
+and ``study.csv`` (:attr:`StudyTask.extra`), and ``study --group-by`` can compare by one. An
+extra column may not take the name of a column the study writes.
 
 Every problem is an :class:`~expertise_irl.errors.InputError` naming the manifest and
 line (``study.csv:4: ...``), including those found in the files a row names.
@@ -16,14 +25,17 @@ from __future__ import annotations
 
 import csv
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..demos.csv_io import read_demos_csv
 from ..demos.recordings import Discretised, discretise_recording
 from ..demos.trajectories import Trajectories
 from ..errors import InputError, read_text
-from ..worlds.warehouse import WarehouseMap, load_floor_plan
+from ..mdp import TabularMDP
+from ..worlds.maps import Map, load_bundled_world, load_world
+from ..worlds.warehouse import WarehouseMap
+from ..worlds.zones import bundled_maps
 
 REQUIRED = ("participant", "map")
 SOURCES = ("recording", "demos")
@@ -39,22 +51,37 @@ class StudyTask:
         index: the row's position among the manifest's rows (0-based).
         line: its line in the manifest (the header is line 1).
         participant: the participant ID.
-        map_path, plan: the floor plan.
+        map_path: the map's file (``bundled:NAME`` for a bundled map).
+        world: the map (a floor plan or a zone map), or ``None`` for an MDP archive.
+        mdp: the task's MDP (``world.to_mdp()``, or the archive's).
         kind: ``"recording"`` or ``"demos"``.
         source: the recording or demonstrations file.
-        trajectories: the demonstrations on ``plan.to_mdp()``.
+        trajectories: the demonstrations on ``mdp``.
         discretised: how a recording became demonstrations (``None`` for demos).
+        extra: the row's other manifest columns, verbatim (``{column: value}``).
     """
 
     index: int
     line: int
     participant: str
     map_path: Path
-    plan: WarehouseMap
+    world: Map | None
+    mdp: TabularMDP
     kind: str
     source: Path
     trajectories: Trajectories
     discretised: Discretised | None
+    extra: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def plan(self) -> WarehouseMap | None:
+        """The floor plan of the task, or ``None`` in another world."""
+        return self.world if isinstance(self.world, WarehouseMap) else None
+
+    @property
+    def map_label(self) -> str:
+        """The map as the manifest names it (a path relative to the manifest, or ``bundled:NAME``)."""
+        return self.map_path.name
 
     @property
     def filled_gaps(self) -> int:
@@ -69,6 +96,7 @@ class StudyTask:
 class Manifest:
     path: Path
     tasks: tuple[StudyTask, ...]
+    extra_columns: tuple[str, ...] = ()
 
     @property
     def participants(self) -> list[str]:
@@ -77,6 +105,11 @@ class Manifest:
 
     def tasks_of(self, participant: str) -> list[StudyTask]:
         return [t for t in self.tasks if t.participant == participant]
+
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        """Every task's features, in the order first seen."""
+        return tuple(dict.fromkeys(f for t in self.tasks for f in t.mdp.feature_names))
 
 
 def read_manifest(
@@ -96,8 +129,9 @@ def read_manifest(
     rows = list(csv.reader(text.splitlines()))
     header, col = _columns(path, rows)
     base = path.parent
-    plans: dict[Path, WarehouseMap] = {}
+    worlds: dict[str, tuple[Map | None, TabularMDP]] = {}
     tasks: list[StudyTask] = []
+    extra = tuple(c for c in header if c not in col and c)
     for line, row in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in row):
             continue  # blank line
@@ -106,34 +140,67 @@ def read_manifest(
             raise InputError(f"{at}: {len(row)} fields but the header has {len(header)}")
         cell = {c: (row[i].strip() if i < len(row) else "") for c, i in col.items()}
         kind = _source_kind(at, cell)
-        map_path = base / cell["map"]
         source = base / cell[kind]
-        if not map_path.is_file():
-            raise InputError(f"{at}: map {cell['map']}: no such file ({map_path})")
+        map_path, key = _map_path(at, base, cell["map"])
         if not source.is_file():
             raise InputError(f"{at}: {kind} {cell[kind]}: no such file ({source})")
         try:
-            key = map_path.resolve()
-            if key not in plans:
-                plans[key] = load_floor_plan(map_path)
-            plan = plans[key]
+            if key not in worlds:
+                worlds[key] = _load_task_map(map_path, cell["map"])
+            world, mdp = worlds[key]
             if kind == "recording":
+                if not isinstance(world, WarehouseMap):
+                    what = "an MDP archive" if world is None else "a zone map"
+                    raise InputError(f"map {cell['map']} is {what}: a recording (episode,t,x,y in metres) "
+                                     "needs a floor plan (world = \"warehouse\"); give the moves as demos "
+                                     "(episode,step,x,y or episode,step,state,action)")
                 disc = discretise_recording(
-                    source, plan, rate=rate, max_dt=max_dt, fill_gaps=fill_gaps, snap=snap
+                    source, world, rate=rate, max_dt=max_dt, fill_gaps=fill_gaps, snap=snap
                 )
                 trajs = disc.trajectories
             else:
                 disc = None
-                trajs = read_demos_csv(source, plan.to_mdp())
+                trajs = read_demos_csv(source, mdp)
         except InputError as exc:
             raise InputError(f"{at}: {exc}") from None
         if len(trajs) == 0:
             raise InputError(f"{at}: {kind} {cell[kind]} holds no moves")
-        tasks.append(StudyTask(len(tasks), line, cell["participant"], map_path, plan, kind, source, trajs,
-                               disc))
+        first = next((t for t in tasks if t.participant == cell["participant"]), None)
+        if first is not None and tuple(mdp.feature_names) != tuple(first.mdp.feature_names):
+            raise InputError(
+                f"{at}: map {cell['map']} has features {', '.join(mdp.feature_names)}, but "
+                f"{cell['participant']}'s task on line {first.line} has "
+                f"{', '.join(first.mdp.feature_names)}: "
+                "a participant's tasks must have the same features in the same order"
+            )
+        values = {c: (row[header.index(c)].strip() if header.index(c) < len(row) else "") for c in extra}
+        tasks.append(StudyTask(len(tasks), line, cell["participant"], map_path, world, mdp, kind, source,
+                               trajs, disc, values))
     if not tasks:
         raise InputError(f"{path}: the manifest has a header but no rows")
-    return Manifest(path, tuple(tasks))
+    return Manifest(path, tuple(tasks), extra)
+
+
+def _map_path(at: str, base: Path, spec: str) -> tuple[Path, str]:
+    """The map's path (``bundled:NAME`` for a bundled map) and the key it is loaded once under."""
+    p = base / spec
+    if p.is_file():
+        return p, str(p.resolve())
+    if spec in bundled_maps():
+        return Path(f"bundled:{spec}"), f"bundled:{spec}"
+    raise InputError(f"{at}: map {spec}: no such file ({p}) and no bundled map of that name "
+                     f"(bundled: {', '.join(bundled_maps())})")
+
+
+def _load_task_map(map_path: Path, spec: str) -> tuple[Map | None, TabularMDP]:
+    """(map or None, MDP) of a manifest's ``map`` cell."""
+    if str(map_path).startswith("bundled:"):
+        world = load_bundled_world(spec)
+        return world, world.to_mdp()
+    if map_path.suffix == ".npz":
+        return None, TabularMDP.load(map_path)
+    world = load_world(map_path)
+    return world, world.to_mdp()
 
 
 def _columns(path: Path, rows: list[list[str]]) -> tuple[list[str], dict[str, int]]:
@@ -151,8 +218,8 @@ def _columns(path: Path, rows: list[list[str]]) -> tuple[list[str], dict[str, in
             f"{path}:1: header lacks {need} (expected participant,map,recording or "
             f"participant,map,demos; got {','.join(header)})"
         )
-    for c in (*REQUIRED, *SOURCES):
-        if header.count(c) > 1:
+    for c in header:
+        if c and header.count(c) > 1:
             raise InputError(f"{path}:1: column {c!r} appears twice")
     return header, {c: header.index(c) for c in (*REQUIRED, *SOURCES) if c in header}
 

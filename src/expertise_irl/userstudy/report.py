@@ -1,5 +1,9 @@
 """The tables of a study: ``study.csv`` / ``study.md`` (one row per participant) and
-``tasks.csv`` (one row per manifest row), and the modes of a discrete posterior."""
+``tasks.csv`` (one row per manifest row), and the modes of a discrete posterior.
+
+Columns: the manifest's extra columns right after ``participant``, verbatim (a participant's
+value is their rows' value, or their distinct values joined by ``;``); Table V's counts are
+empty where a task's world is not a floor plan (:data:`.paths.PLAN_COUNTS`)."""
 
 from __future__ import annotations
 
@@ -12,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..inference.belief import DiscreteBelief
-from .paths import COUNTS
+from .paths import COUNTS, world_counts
 
 GROUP_COLUMNS = ("p_high", "p_medium", "p_low")
 #: A mode must hold at least this posterior probability to be named.
@@ -71,7 +75,7 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]
         w = csv.writer(fh)
         w.writerow(columns)
         for r in rows:
-            w.writerow([_fmt(r[c]) for c in columns])
+            w.writerow([_fmt(r.get(c, math.nan)) for c in columns])
     tmp.replace(path)
 
 
@@ -86,21 +90,39 @@ _SUMMARY_COLUMNS = (
 )
 
 
-def study_columns(feature_names: Sequence[str], models: Sequence[str] = ()) -> list[str]:
-    cols = ["participant", "tasks", "episodes", "beta_hat", *(f"theta_{f}" for f in feature_names),
-            *_SUMMARY_COLUMNS]
+#: β summaries of ``study.csv`` (``beta_hat`` stays the posterior mean).
+BETA_SUMMARY_COLUMNS = ("beta_mean", "beta_median", "beta_geomean", "beta_q05", "beta_q95")
+HELDOUT_COLUMNS = ("heldout_split", "heldout_actions", "heldout_log_likelihood_per_action")
+
+
+def _world_columns(feature_names: Sequence[str]) -> list[str]:
+    """Every world's counts of the observed paths and of the optimal ones (Table VI)."""
+    own = list(world_counts(feature_names))
+    return own + [f"optimal_{c}" for c in own if c != "goal_reached"]
+
+
+def study_columns(feature_names: Sequence[str], models: Sequence[str] = (),
+                  extra: Sequence[str] = ()) -> list[str]:
+    cols = ["participant", *extra, "tasks", "episodes", "beta_hat", *(f"theta_{f}" for f in feature_names),
+            *_SUMMARY_COLUMNS, *BETA_SUMMARY_COLUMNS, "share", *_world_columns(feature_names),
+            *HELDOUT_COLUMNS, "warnings"]
     if models:
         cols += [f"log_evidence_{m}" for m in models] + ["best_model"]
     return cols
 
 
-def task_columns(feature_names: Sequence[str]) -> list[str]:
-    return ["participant", "task", "line", "map", "recording", "demos", "episodes", "beta_hat",
-            *(f"theta_{f}" for f in feature_names), *_SUMMARY_COLUMNS]
+def task_columns(feature_names: Sequence[str], extra: Sequence[str] = ()) -> list[str]:
+    return ["participant", *extra, "task", "line", "map", "recording", "demos", "episodes", "beta_hat",
+            *(f"theta_{f}" for f in feature_names), *_SUMMARY_COLUMNS, *_world_columns(feature_names)]
 
 
 def _num(x: float, digits: int = 3) -> str:
     return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}g}"
+
+
+def _has(r: dict[str, Any], c: str) -> bool:
+    v = r.get(c)
+    return v is not None and not (isinstance(v, float) and math.isnan(v))
 
 
 def study_markdown(
@@ -108,31 +130,81 @@ def study_markdown(
     feature_names: Sequence[str],
     *,
     method: str,
-    n_hypotheses: int | None,
+    n_hypotheses: int | str | None,
     modes: dict[str, list],
     title: str,
+    share: str = "both",
+    warnings: dict[str, list[str]] | None = None,
+    grid: dict[str, Any] | None = None,
+    betas: Sequence[float] | None = None,
 ) -> str:
-    """Tables V and VI of the study, the modes, and what ingestion changed."""
+    """The study's summary: warnings counted, β and θ̂ per participant, every world's path counts,
+    Tables V–VI where the maps are floor plans, the modes, the held-out check, what ingestion
+    changed, and each participant's warnings."""
+    warnings = warnings or {}
     feats = ", ".join(feature_names)
     lines = [f"# {title}", ""]
     what = f"{n_hypotheses} hypotheses" if n_hypotheses else method
+    shared = ("one (θ, β) per participant over all their tasks" if share == "both"
+              else "one β per participant, a θ per task (θ̂ per task in tasks.csv)")
+    n_warn = sum(len(w) for w in warnings.values())
+    lines += [f"Method: {method} ({what}); --share {share}: {shared}. Features: {feats}.", ""]
+    if betas is not None:
+        source = (f"chosen from the maps' soft values (--betas auto): {grid['rule']}" if grid
+                  else "given by --betas")
+        lines += [f"β grid: {', '.join(f'{b:g}' for b in betas)} ({source}).", ""]
+    lines += [f"**Warnings: {n_warn}** for {sum(1 for w in warnings.values() if w)} of {len(rows)} "
+              "participant(s) (listed under Warnings below).", ""]
     lines += [
-        f"Method: {method} ({what}). θ̂ in the order [{feats}].",
+        "## Estimates",
         "",
-        "## Observed trajectories (Table V)",
+        "β̂ is the posterior mean; the median, the geometric mean exp E[log β] and the 90% interval "
+        "[q05, q95] beside it.",
         "",
-        "| participant | β̂ | θ̂ | P(high / medium / low) | path length | path cost | wrong road direction "
-        "| restricted moves | road usage | direction changes |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| participant | β̂ | median | geo. mean | 90% interval | θ̂ | P(high / medium / low) "
+        "| held-out / action |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        theta = "[" + ", ".join(f"{r[f'theta_{f}']:.2f}" for f in feature_names) + "]"
-        groups = " / ".join(_num(r[c], 2) for c in GROUP_COLUMNS) if not math.isnan(r["p_high"]) else ""
-        lines.append(
-            f"| {r['participant']} | {r['beta_hat']:.3g} | {theta} | {groups} | {r['path_length']} | "
-            f"{r['path_cost']} | {r['wrong_road_direction']} | {r['restricted_moves']} | "
-            f"{r['road_cells']}/{r['path_length']} | {r['direction_changes']} |"
-        )
+        theta = (", ".join(f"{f} {r[f'theta_{f}']:.2f}" for f in feature_names if _has(r, f"theta_{f}"))
+                 or "per task")
+        groups = " / ".join(_num(r[c], 2) for c in GROUP_COLUMNS) if _has(r, "p_high") else ""
+        band = f"[{_num(r['beta_q05'])}, {_num(r['beta_q95'])}]" if _has(r, "beta_q05") else ""
+        held = (f"{r['heldout_log_likelihood_per_action']:.3f} ({r['heldout_split']})"
+                if _has(r, "heldout_log_likelihood_per_action") else "n/a")
+        lines.append(f"| {r['participant']} | {_num(r['beta_hat'])} | {_num(r['beta_median'])} | "
+                     f"{_num(r['beta_geomean'])} | {band} | {theta} | {groups} | {held} |")
+    lines += [
+        "",
+        "## Observed paths",
+        "",
+        "Every world: moves, episodes that reached a goal, their mean moves, the cost −Σ θ̂·φ under θ̂, "
+        "and each feature's sum along the path.",
+        "",
+        "| participant | path length | reached goal | steps to goal | cost under θ̂ | "
+        + " | ".join(f"Σ {f}" for f in feature_names) + " |",
+        "|---" * (5 + len(feature_names)) + "|",
+    ]
+    for r in rows:
+        lines.append(f"| {r['participant']} | {r['path_length']} | {r['goal_reached']}/{r['episodes']} | "
+                     f"{_num(r['steps_to_goal'])} | {_num(r['cost_theta_hat'])} | "
+                     + " | ".join(_num(r.get(f"feature_{f}", math.nan)) for f in feature_names) + " |")
+    plan_rows = [r for r in rows if _has(r, "path_cost")]
+    if plan_rows:
+        lines += [
+            "",
+            "## Observed trajectories on floor plans (Table V)",
+            "",
+            "| participant | path length | path cost | wrong road direction "
+            "| restricted moves | road usage | direction changes |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for r in plan_rows:
+            lines.append(
+                f"| {r['participant']} | {r['path_length']} | "
+                f"{r['path_cost']} | {r['wrong_road_direction']} | {r['restricted_moves']} | "
+                f"{r['road_cells']}/{r['path_length']} | {r['direction_changes']} |"
+            )
     lines += [
         "",
         "## Optimal trajectories, β = 0.001 with θ̂ (Table VI)",
@@ -142,12 +214,12 @@ def study_markdown(
         "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        lines.append(
-            f"| {r['participant']} | {r['optimal_path_length']} | {r['optimal_path_cost']} | "
-            f"{r['optimal_wrong_road_direction']} | {r['optimal_restricted_moves']} | "
-            f"{r['optimal_road_cells']}/{r['optimal_path_length']} | "
-            f"{r['optimal_direction_changes']} | {r['optimal_reached_goal']}/{r['episodes']} |"
-        )
+        road = f"{r['optimal_road_cells']}/{r['optimal_path_length']}"
+        plan = ("path_cost", "wrong_road_direction", "restricted_moves")
+        cells = ([str(r[f"optimal_{c}"]) for c in plan] + [road, str(r["optimal_direction_changes"])]
+                 if _has(r, "optimal_path_cost") else ["n/a"] * 5)
+        lines.append(f"| {r['participant']} | {r['optimal_path_length']} | " + " | ".join(cells)
+                     + f" | {r['optimal_reached_goal']}/{r['episodes']} |")
     several = {p: m for p, m in modes.items() if len(m) > 1}
     if several:
         lines += ["", "## Participants whose posterior has several modes", ""]
@@ -168,4 +240,11 @@ def study_markdown(
             )
     else:
         lines.append("No gap was filled and no sample snapped.")
+    lines += ["", "## Warnings", ""]
+    if n_warn:
+        for pid, ws in warnings.items():
+            for w in ws:
+                lines.append(f"- {pid}: {w}")
+    else:
+        lines.append("None.")
     return "\n".join(lines) + "\n"

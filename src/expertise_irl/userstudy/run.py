@@ -2,30 +2,36 @@
 
 Steps (each engine phase is resumable: a finished task is not run again):
 
-1. read the manifest and every floor plan, recording and demonstrations file (any problem
-   stops here, naming the manifest line);
+1. read the manifest and every map (floor plan, zone map, bundled map or MDP archive),
+   recording and demonstrations file (any problem stops here, naming the manifest line);
+   with ``--betas auto`` (the default) choose the β grid from the maps' soft values
+   (:func:`.diagnostics.auto_beta_grid`);
 2. inference on the engine, in ``DIR/engine/inference``: for ``discrete`` one task per
-   distinct floor plan (one solve of the hypothesis set, shared by every participant on it),
-   for ``map`` / ``nuts`` one task per participant (all their tasks' log-likelihoods summed);
-3. the joint posterior of each participant (the product over their tasks); with
+   distinct map (one solve of the hypothesis set, shared by every participant on it; the
+   log-likelihood of every episode), for ``map`` / ``nuts`` one task per participant;
+3. each participant's posterior over their tasks (:mod:`.posteriors`: ``--share both``, one
+   (θ, β), or ``--share beta``, one β and a θ per task), the held-out check, the warnings; with
    ``--models`` (discrete only), the same inference phase once per other model, in
-   ``DIR/engine/inference-<model>``, and each participant's evidence per model
-   (:mod:`.evidence`);
-4. optimal paths on the engine, in ``DIR/engine/optimal``: one task per floor plan, β = 0.001
-   with each participant's θ̂, from the start of each of their episodes;
+   ``DIR/engine/inference-<model>``, and each participant's evidence per model (:mod:`.evidence`);
+4. optimal paths on the engine, in ``DIR/engine/optimal``: one task per map, β = 0.001
+   with each participant's θ̂ (their task's with ``--share beta``), from the start of each of
+   their episodes;
 5. the reports: ``DIR/study.csv``, ``DIR/study.md``, ``DIR/tasks.csv`` (``DIR/models.csv``
-   with ``--models``) and, per participant,
-   ``DIR/participants/ID/result.json`` and ``DIR/participants/ID/ID.png``.
+   with ``--models``), ``DIR/study.png`` and, per participant,
+   ``DIR/participants/ID/result.json`` and (``--figures``) ``DIR/participants/ID/ID.png``,
+   drawn in parallel.
 
 ``DIR/study.json`` records what the study is (inputs with their digests, options); a
 second run on the same DIR with the same inputs and options resumes, anything else is
-refused.
+refused. The report options (``--figures``, ``--group-by``) are not part of it: a rerun
+with others redraws the reports from the finished engine phases.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -40,8 +46,9 @@ from ..experiments import engine
 from ..hypotheses import GROUP_NAMES
 from ..results import file_digest, finite_or_null, map_digest, write_json
 from . import evidence as model_evidence
+from . import posteriors
 from .manifest import Manifest, StudyTask, read_manifest
-from .paths import COUNTS, OPTIMAL_BETA, path_counts
+from .paths import OPTIMAL_BETA, task_counts
 from .report import (
     GROUP_COLUMNS,
     posterior_modes,
@@ -50,16 +57,23 @@ from .report import (
     task_columns,
     write_csv,
 )
-from .study import CONTINUOUS, DISCRETE, OPTIMAL, UserStudyConfig
+from .study import CONTINUOUS, DISCRETE, OPTIMAL, UserStudyConfig, world_entry
 
 STUDY_FILE = "study.json"
-LAYOUT = 1
+#: 2: any map, per-episode log-likelihoods, --share, the β grid of --betas auto.
+LAYOUT = 2
+
+
+#: ``--betas auto``: the study's β grid from the maps' soft values (:func:`.diagnostics.auto_beta_grid`).
+AUTO_BETAS = "auto"
 
 
 @dataclass(frozen=True)
 class StudyOptions:
+    """What a study computes (its identity: another value on the same DIR is refused)."""
+
     thetas: str = "paper-real"
-    betas: str = "paper-real"
+    betas: str = AUTO_BETAS
     method: str = "discrete"
     rate: float = 1.0
     max_dt: float | None = None
@@ -67,6 +81,15 @@ class StudyOptions:
     snap: bool = False
     model: str = "maxent"
     models: tuple[str, ...] = ()  # --models: observation models to compare (discrete only)
+    share: str = "both"  # --share: both (one θ, β per participant) or beta (a θ per task)
+
+
+@dataclass(frozen=True)
+class ReportOptions:
+    """How a study is reported (not part of its identity: a rerun may change them)."""
+
+    figures: str = "all"  # --figures all|none|N
+    group_by: str | None = None  # --group-by COLUMN
 
 
 class StudyFailed(Exception):
@@ -86,31 +109,34 @@ class StudyOutcome:
     wall_time_s: float
     feature_names: tuple[str, ...]
     evidence: dict[str, dict[str, Any]] | None = None  # --models: per participant
+    timing: dict[str, float] | None = None  # seconds: inference (engine phases), reports, figures
 
 
-def map_key(plan) -> str:
-    return "map-" + map_digest(plan).split(":", 1)[1][:16]
+def map_key(world) -> str:
+    """The engine's key of a map: from its content digest (a floor plan or zone map)."""
+    return "map-" + map_digest(world).split(":", 1)[1][:16]
 
 
-def _plan_entry(plan) -> dict[str, Any]:
-    return {
-        "text": plan.to_text(),
-        "name": Path(plan.name).name,
-        "cell_size": plan.cell_size,
-        "goal_bonus": plan.goal_bonus,
-        "gamma": plan.gamma,
-        "y_up": plan.y_up,
-        "goal_reward_mode": plan.goal_reward_mode,
-    }
+def task_map_key(t: StudyTask) -> str:
+    """The engine's key of a task's map; an MDP archive's from its bytes."""
+    if t.world is None:
+        return "mdp-" + file_digest(t.map_path).split(":", 1)[1][:16]
+    return map_key(t.world)
+
+
+def task_map_digest(t: StudyTask) -> str:
+    return file_digest(t.map_path) if t.world is None else map_digest(t.world)
 
 
 def study_data(manifest: Manifest) -> dict[str, Any]:
-    """The study's data for the engine: floor plans by key and every row's pairs."""
+    """The study's data for the engine: maps by key and every row's pairs."""
     maps: dict[str, Any] = {}
     tasks = []
     for t in manifest.tasks:
-        key = map_key(t.plan)
-        maps.setdefault(key, _plan_entry(t.plan))
+        key = task_map_key(t)
+        if key not in maps:
+            raw = t.map_path.read_bytes() if t.world is None else None
+            maps[key] = world_entry(t.world, raw, t.map_path.name)
         tr = t.trajectories
         tasks.append(
             {
@@ -130,10 +156,12 @@ def _identity(manifest: Manifest, opts: StudyOptions) -> dict[str, Any]:
     files = {"manifest": file_digest(manifest.path)}
     for t in manifest.tasks:
         files[str(t.source)] = file_digest(t.source)
-        files[str(t.map_path)] = map_digest(t.plan)
+        files[str(t.map_path)] = task_map_digest(t)
     options = asdict(opts)
     if not opts.models:  # a study without --models keeps the identity it had before the option
         del options["models"]
+    if opts.share == "both":  # (nor does one without --share beta)
+        del options["share"]
     ident = {"layout": LAYOUT, "options": options, "inputs": files}
     ident["hash"] = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
     return ident
@@ -177,7 +205,7 @@ def _changed_inputs(old: dict[str, str], new: dict[str, str], manifest: Manifest
     base = manifest.path.parent
     lines: dict[str, str] = {}
     for t in manifest.tasks:
-        for kind, p in ((t.kind, t.source), ("floor plan", t.map_path)):
+        for kind, p in ((t.kind, t.source), ("map", t.map_path)):
             rel = _rel(p, base)
             lines.setdefault(rel, f"the {kind} of manifest line {t.line} ({rel})")
     out = []
@@ -265,44 +293,52 @@ def run_study(
     workers: int | None = None,
     scheduler: str | None = None,
     on_task: Callable | None = None,
+    report: ReportOptions = ReportOptions(),
+    on_figure: Callable[[int, int], None] | None = None,
 ) -> StudyOutcome:
-    """Run (or resume) the study of ``manifest_path`` into ``out`` (see the module docstring)."""
-    from ..inference.methods import DiscreteOptions
+    """Run (or resume) the study of ``manifest_path`` into ``out`` (see the module docstring).
+
+    ``on_figure(done, total)`` hears the figures being drawn."""
     from ..models import check_model
+    from .figures import select_figures
 
     t0 = time.perf_counter()
     check_model(opts.model, "--model")
-    cfg_probe = UserStudyConfig(data="{}", method=opts.method)  # a bad --method is reported first
-    del cfg_probe
+    UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
     model_evidence.check_models(opts.models, opts.method)
     manifest = read_manifest(
         manifest_path, rate=opts.rate, max_dt=opts.max_dt, fill_gaps=opts.fill_gaps, snap=opts.snap
     )
-    names = tuple(manifest.tasks[0].plan.to_mdp().feature_names)
-    hyp = None
+    check_extra_columns(manifest)
+    figures_for = select_figures(manifest.participants, report.figures)
+    if report.group_by is not None:
+        from .groups import _check_column
+
+        _check_column([], report.group_by, list(manifest.extra_columns))
+    names = manifest.feature_names
+    hyp, grid = {}, None
     if opts.method == "discrete":
-        hyp = DiscreteOptions(thetas=opts.thetas, betas=opts.betas).hypotheses(len(names))
+        hyp, grid = _hypothesis_sets(manifest, opts)
     out = Path(out)
     ident = _identity(manifest, opts)
     _open_out(out, ident, manifest)
     data = study_data(manifest)
-    if opts.models:  # the held-out split rides on the inference phase as extra rows
-        data["tasks"] += model_evidence.split_rows(data["tasks"])
     cfg = UserStudyConfig(
         data=json.dumps(data, sort_keys=True),
         thetas=opts.thetas,
-        betas=opts.betas,
+        betas=grid["betas"] if grid else opts.betas,
         model=opts.model,
         method=opts.method,
+        share=opts.share,
     )
     study = DISCRETE if opts.method == "discrete" else CONTINUOUS
+    t_inf = time.perf_counter()
     s1 = _run_phase(study, out / "engine" / "inference", cfg, "inference", workers, scheduler, on_task)
     rows = engine.load(out / "engine" / "inference")
-    estimates = (
-        _discrete_estimates(manifest, rows, hyp)
-        if opts.method == "discrete"
-        else _continuous_estimates(manifest, rows)
-    )
+    if opts.method == "discrete":
+        estimates = _discrete_estimates(manifest, _episode_lls(rows), hyp, opts.share)
+    else:
+        estimates = _continuous_estimates(manifest, rows, opts.share)
     evidence, s_models = None, []
     if opts.models:
         lls = {}
@@ -311,27 +347,70 @@ def run_study(
             if m != opts.model:
                 s_models.append(_run_phase(DISCRETE, where, replace(cfg, model=m), f"inference ({m})",
                                            workers, scheduler, on_task))
-            lls[m] = _log_likelihoods(rows if m == opts.model else engine.load(where))
-        evidence = model_evidence.participant_evidence(data["tasks"], lls, hyp)
-        data["tasks"] = [t for t in data["tasks"] if "part" not in t]
-    # Optimal paths: each row's θ̂ is its participant's (joint) θ̂.
+            lls[m] = _episode_lls(rows if m == opts.model else engine.load(where))
+        evidence = model_evidence.participant_evidence(manifest, lls, hyp, opts.share,
+                                                       {p: e["zero_features"] for p, e in estimates.items()})
+    # Optimal paths: each row's θ̂ is its participant's (joint) θ̂, or with --share beta the task's own.
     for t in data["tasks"]:
-        t["theta_hat"] = list(estimates[t["participant"]]["doc"]["theta_hat"])
+        est = estimates[t["participant"]]
+        j = next(i for i, x in enumerate(manifest.tasks_of(t["participant"])) if x.index == t["task"])
+        t["theta_hat"] = list(est["task_theta"][j])
         t["starts"] = [int(s) for s, _ in _starts(manifest.tasks[t["task"]])]
         for k in ("episodes", "steps", "states", "actions"):
             del t[k]
     cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=opts.model, method=opts.method)
     s2 = _run_phase(OPTIMAL, out / "engine" / "optimal", cfg2, "optimal", workers, scheduler, on_task)
     optimal = engine.load(out / "engine" / "optimal")
-    participants = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence)
+    inference_s = time.perf_counter() - t_inf
+    t_rep = time.perf_counter()
+    participants, jobs = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence, grid, report)
+    report_s = time.perf_counter() - t_rep
+    t_fig = time.perf_counter()
+    _draw(out, jobs, figures_for, participants, names, manifest, workers, scheduler, on_figure)
+    figures_s = time.perf_counter() - t_fig
     ran = s1.ran + s2.ran + sum(s.ran for s in s_models)
     skipped = s1.skipped + s2.skipped + sum(s.skipped for s in s_models)
-    return StudyOutcome(out, participants, ran, skipped, time.perf_counter() - t0, names, evidence)
+    return StudyOutcome(out, participants, ran, skipped, time.perf_counter() - t0, names, evidence,
+                        {"inference_s": inference_s, "reports_s": report_s, "figures_s": figures_s,
+                         "figures": len(figures_for)})
 
 
-def _log_likelihoods(rows) -> dict[int, np.ndarray]:
-    """``{engine row: [H] log-likelihoods}`` of a discrete inference sweep."""
-    return {int(k): g.sort_values("hypothesis")["log_likelihood"].to_numpy() for k, g in rows.groupby("task")}
+def check_extra_columns(manifest: Manifest) -> None:
+    """An extra manifest column may not take the name of a column the study writes."""
+    feats = manifest.feature_names
+    taken = set(study_columns(feats)) | set(task_columns(feats))
+    for c in manifest.extra_columns:
+        if c in taken:
+            raise InputError(f"{manifest.path}:1: column {c!r} is a column the study writes; rename it "
+                             "in the manifest")
+
+
+def _hypothesis_sets(manifest: Manifest, opts: StudyOptions):
+    """The discrete set for each number of features K in the study (one β grid for all) and, for
+    ``--betas auto``, the grid and where it came from (:func:`.diagnostics.auto_beta_grid`, pooled
+    over the study's distinct maps, each with the θ set of its K)."""
+    from ..inference.methods import DiscreteOptions
+    from .diagnostics import auto_beta_grid
+
+    mdps = list({task_map_key(t): t.mdp for t in manifest.tasks}.values())
+    Ks = sorted({m.n_features for m in mdps})
+    if opts.betas != AUTO_BETAS:
+        return {K: DiscreteOptions(thetas=opts.thetas, betas=opts.betas).hypotheses(K) for K in Ks}, None
+    thetas = {K: DiscreteOptions(thetas=opts.thetas, betas="paper-real").hypotheses(K).thetas for K in Ks}
+    betas, info = auto_beta_grid(mdps, thetas, model=opts.model)
+    spec = ",".join(f"{b:g}" for b in betas)
+    return ({K: DiscreteOptions(thetas=opts.thetas, betas=spec).hypotheses(K) for K in Ks},
+            {"betas": spec, **info})
+
+
+def _episode_lls(rows) -> dict[int, np.ndarray]:
+    """``{manifest row: [E, H] log-likelihoods}`` of a discrete inference sweep."""
+    out = {}
+    for k, g in rows.groupby("task"):
+        g = g.sort_values(["episode", "hypothesis"])
+        E = int(g["episode"].max()) + 1
+        out[int(k)] = g["log_likelihood"].to_numpy().reshape(E, -1)
+    return out
 
 
 def _starts(task: StudyTask) -> list[tuple[int, int]]:
@@ -341,69 +420,162 @@ def _starts(task: StudyTask) -> list[tuple[int, int]]:
 
 
 # ------------------------------------------------------------------------ estimates
-def _discrete_estimates(manifest: Manifest, rows, hyp) -> dict[str, dict[str, Any]]:
+class _Marginals:
+    """The two marginals :func:`~..inference.diagnostics.discrete_warnings` reads."""
+
+    def __init__(self, betas, pb, thetas, pt):
+        self._b, self._t = (np.asarray(betas), np.asarray(pb)), (np.asarray(thetas), np.asarray(pt))
+
+    def marginal_beta(self):
+        return self._b
+
+    def marginal_theta(self):
+        return self._t
+
+
+def _constant(mine: list[StudyTask], names) -> tuple[list[int], list[str]]:
+    """The features constant on every task of a participant: those that are 0 everywhere (kept at
+    θ_i = 0) and a warning for each."""
+    from .diagnostics import constant_feature_warning, constant_features
+
+    found = constant_features([t.mdp for t in mine])
+    zero = [i for i, v in found if v is not None and v == 0]
+    return zero, [constant_feature_warning(names[i], v) for i, v in found]
+
+
+def _discrete_estimates(manifest: Manifest, ells, hyps, share: str) -> dict[str, dict[str, Any]]:
     from ..inference.belief import DiscreteBelief
+    from ..inference.diagnostics import discrete_warnings
     from ..inference.multitask import MultiTaskBelief
     from ..results import discrete_result
+    from .summaries import beta_summary_grid
 
-    H = len(hyp)
-    ll = _log_likelihoods(rows)
-    log_prior = np.full(H, -np.log(H))
     out = {}
     for pid in manifest.participants:
         mine = manifest.tasks_of(pid)
-        beliefs = [
-            DiscreteBelief(hyp, np.zeros((H, 0, 4)), log_prior, ll[t.index], len(t.trajectories))
-            for t in mine
-        ]
-        joint = MultiTaskBelief(tuple(beliefs)).joint()
-        names = mine[0].plan.to_mdp().feature_names
-        doc = discrete_result(
-            joint,
-            feature_names=names,
-            settings={},
-            data={
-                "tasks": len(mine),
-                "episodes": sum(t.trajectories.n_episodes for t in mine),
-                "actions": joint.n_observed,
-            },
-        )
-        doc["modes"] = posterior_modes(joint)
-        out[pid] = {
-            "doc": doc,
-            "groups": joint.group_probabilities(),
-            "per_task": [
-                {
-                    "beta_hat": b.mean_beta,
-                    "theta_hat": b.mean_theta.tolist(),
-                    "groups": b.group_probabilities(),
-                }
-                for b in beliefs
-            ],
-        }
+        names = tuple(mine[0].mdp.feature_names)
+        hyp = hyps[len(names)]
+        H = len(hyp)
+        zero, warnings = _constant(mine, names)
+        if zero and not posteriors.allows_zero(hyp, zero):
+            warnings.append(f"no θ of the set has θ = 0 on {', '.join(names[i] for i in zero)}, so the "
+                            "study could not keep them at 0; use a --thetas whose values include 0")
+            zero = []
+        task_ll = [ells[t.index].sum(axis=0) for t in mine]
+        data = {"tasks": len(mine), "episodes": sum(t.trajectories.n_episodes for t in mine),
+                "actions": sum(len(t.trajectories) for t in mine)}
+        lp = posteriors.log_prior_joint(hyp, zero)
+        beliefs = [DiscreteBelief(hyp, np.zeros((H, 0, 4)), lp, ll, len(t.trajectories))
+                   for ll, t in zip(task_ll, mine, strict=True)]
+        if share == "both":
+            joint = MultiTaskBelief(tuple(beliefs)).joint()
+            doc = discrete_result(joint, feature_names=names, settings={}, data=data)
+            doc["modes"] = posterior_modes(joint)
+            warnings += discrete_warnings(joint, names)
+            groups = joint.group_probabilities()
+            task_theta = [list(doc["theta_hat"])] * len(mine)
+            per_task = [{"beta_hat": b.mean_beta, "theta_hat": b.mean_theta.tolist(),
+                         "groups": b.group_probabilities()} for b in beliefs]
+        else:
+            sb = posteriors.shared_beta_posterior(task_ll, hyp, zero)
+            doc = _shared_beta_doc(sb, names, data)
+            warnings += discrete_warnings(_Marginals(hyp.betas, sb.beta_probabilities, hyp.thetas[:1], [1.0]))
+            for j, t in enumerate(mine):
+                warnings += [f"task {j + 1} (line {t.line}): {w}" for w in discrete_warnings(
+                    _Marginals(hyp.betas[:1], [1.0], hyp.thetas, sb.theta_probabilities[j]), names)]
+            groups = sb.group_probabilities()
+            task_theta = sb.mean_thetas.tolist()
+            per_task = [{"beta_hat": sb.mean_beta, "theta_hat": task_theta[j], "groups": groups,
+                         "theta_marginal": {"values": hyp.thetas.tolist(),
+                                            "probabilities": sb.theta_probabilities[j].tolist()}}
+                        for j in range(len(mine))]
+        doc["share"] = share
+        doc["beta_summary"] = beta_summary_grid(*doc_beta_marginal(doc))
+        held = posteriors.heldout_check([ells[t.index] for t in mine],
+                                        [[len(s) for s, _ in t.trajectories.episodes()] for t in mine],
+                                        hyp, share, zero)
+        doc["heldout"] = held
+        doc["diagnostics"] = {"warnings": warnings, "unavailable": {},
+                              "kept_at_zero": [names[i] for i in zero]}
+        out[pid] = {"doc": doc, "groups": groups, "per_task": per_task, "task_theta": task_theta,
+                    "zero_features": zero, "hypotheses": hyp}
     return out
 
 
-def _continuous_estimates(manifest: Manifest, rows) -> dict[str, dict[str, Any]]:
+def doc_beta_marginal(doc) -> tuple[list[float], list[float]]:
+    b = doc["marginals"]["beta"]
+    return b["values"], b["probabilities"]
+
+
+def _shared_beta_doc(sb, names, data) -> dict[str, Any]:
+    """The result document of a ``--share beta`` discrete posterior (θ per task: in ``tasks``)."""
+    from .. import __version__ as version
     from ..hypotheses import expertise_group
+
+    hyp = sb.hypotheses
+    j = int(np.nanargmax(sb.beta_probabilities)) if np.isfinite(sb.beta_probabilities).all() else 0
+    return finite_or_null({
+        "version": version, "method": "discrete", "feature_names": list(names),
+        "beta_hat": sb.mean_beta, "theta_hat": None,
+        "theta_hat_by_task": sb.mean_thetas.tolist(),
+        "expertise_group": expertise_group(sb.mean_beta) if np.isfinite(sb.mean_beta) else None,
+        "group_probabilities": sb.group_probabilities(),
+        "map": {"beta": float(hyp.betas[j]), "probability": float(sb.beta_probabilities[j])},
+        "log_evidence": sb.log_evidence,
+        "marginals": {"beta": {"values": hyp.betas.tolist(),
+                               "probabilities": sb.beta_probabilities.tolist()}},
+        "data": data,
+    })
+
+
+#: Why ``--method map|nuts`` has no held-out check.
+CONTINUOUS_HELDOUT = ("the held-out check needs --method discrete: there one solve gives every episode's "
+                      "likelihood, while with map or nuts each held-out unit would need a fit of its own")
+
+
+def _continuous_estimates(manifest: Manifest, rows, share: str) -> dict[str, dict[str, Any]]:
+    from ..hypotheses import expertise_group
+    from .summaries import beta_summary_draws, beta_summary_point
 
     by = dict(zip(rows["participant"], rows["result"], strict=True))
     out = {}
     for pid in manifest.participants:
+        mine = manifest.tasks_of(pid)
         res = json.loads(by[pid])
+        _, warnings = _constant(mine, tuple(mine[0].mdp.feature_names))
         groups = None
         draws = res.get("draws")
         if draws:
             g = [expertise_group(b) for b in draws["beta"]]
             groups = {k: g.count(k) / len(g) for k in GROUP_NAMES}
-        out[pid] = {"doc": res, "groups": groups, "per_task": None}
+            summary = beta_summary_draws(np.asarray(draws["beta"], dtype=float))
+        else:
+            summary = beta_summary_point(float(res["beta_hat"]))
+        diag = res.setdefault("diagnostics", {})
+        diag["warnings"] = list(diag.get("warnings") or []) + warnings
+        res["beta_summary"] = summary
+        res["share"] = share
+        res["heldout"] = {"split": "none", "units": 0, "actions": 0, "log_likelihood": None,
+                          "per_action": None, "unavailable": CONTINUOUS_HELDOUT}
+        if share == "beta":
+            task_theta = [list(t) for t in res["theta_hat"]]
+            res["theta_hat_by_task"], res["theta_hat"] = task_theta, None
+        else:
+            task_theta = [list(res["theta_hat"])] * len(mine)
+        per_task = ([{"beta_hat": res["beta_hat"], "theta_hat": th, "groups": groups} for th in task_theta]
+                    if share == "beta" else None)
+        out[pid] = {"doc": res, "groups": groups, "per_task": per_task, "task_theta": task_theta,
+                    "zero_features": [], "hypotheses": None}
     return out
 
 
 # -------------------------------------------------------------------------- reports
-def _cells_of(plan, mdp, states, actions) -> np.ndarray:
-    s = np.append(states, mdp.next_state[states[-1], actions[-1]]) if len(states) else states
-    return plan.state_cells()[s]
+def _path_states(mdp, states, actions) -> np.ndarray:
+    """The states a path visits, the final one (where its last move lands) included."""
+    states = np.asarray(states, dtype=np.int64)
+    if not len(states):
+        return states
+    return np.append(states, mdp.next_state[states[-1], actions[-1]])
 
 
 class _TaskReport(NamedTuple):
@@ -412,63 +584,73 @@ class _TaskReport(NamedTuple):
     panel: dict[str, Any]  # its panel of the participant's figure
     row: dict[str, Any]  # its row of tasks.csv
     doc: dict[str, Any]  # its entry in the participant's result.json
-    counts: dict[str, int]  # Table V counts of the observed moves
-    optimal_counts: dict[str, int]  # the same of the optimal paths
+    counts: dict[str, Any]  # every world's counts of the observed moves (+ Table V's on a floor plan)
+    optimal_counts: dict[str, Any]  # the same of the optimal paths
     reached: int  # optimal paths that reach a goal
 
 
-def _task_report(pid: str, t: StudyTask, optimal, pt: dict[str, Any] | None, feats) -> _TaskReport:
-    """The counts, panel, ``tasks.csv`` row and result entry of row ``t`` (``pt``: its own estimate)."""
-    mdp = t.plan.to_mdp()
+def _task_report(pid: str, t: StudyTask, optimal, pt: dict[str, Any] | None, theta) -> _TaskReport:
+    """The counts, panel, ``tasks.csv`` row and result entry of row ``t`` (``pt``: its own estimate,
+    ``theta``: the θ̂ its costs are taken under)."""
+    mdp = t.mdp
     tr = t.trajectories
-    counts = path_counts(t.plan, mdp, tr.state, tr.action)
+    counts = task_counts(t.plan, mdp, tr.state, tr.action, tr.episode, theta)
     opt = optimal[optimal["task"] == t.index]
-    counts_opt = path_counts(t.plan, mdp, opt["state"].to_numpy(), opt["action"].to_numpy())
+    counts_opt = task_counts(t.plan, mdp, opt["state"].to_numpy(), opt["action"].to_numpy(),
+                             opt["episode"].to_numpy(), theta)
     ok = int(opt.groupby("episode")["reached_goal"].first().sum()) if len(opt) else 0
-    observed = [_cells_of(t.plan, mdp, s, a) for s, a in tr.episodes()]
-    opt_cells = [_cells_of(t.plan, mdp, g["state"].to_numpy(), g["action"].to_numpy())
-                 for _, g in opt.groupby("episode")]
-    title = f"{Path(t.map_path).name} ({t.source.name})"
-    panel = {"plan": t.plan, "title": title, "observed": observed, "optimal": opt_cells}
+    observed = [_path_states(mdp, s, a) for s, a in tr.episodes()]
+    opt_states = [_path_states(mdp, g["state"].to_numpy(), g["action"].to_numpy())
+                  for _, g in opt.groupby("episode")]
+    title = f"{t.map_path.name} ({t.source.name})"
+    panel = {"world": t.world, "mdp": mdp, "title": title, "observed": observed, "optimal": opt_states,
+             "theta_hat": list(theta),
+             "theta_marginal": pt.get("theta_marginal") if pt else None}
     ingestion = {"filled_gaps": t.filled_gaps, "snapped_samples": t.snapped_samples}
     row = {
-        "participant": pid, "task": t.index, "line": t.line, "map": str(t.map_path),
+        "participant": pid, **t.extra, "task": t.index, "line": t.line, "map": str(t.map_path),
         "recording": str(t.source) if t.kind == "recording" else "",
         "demos": str(t.source) if t.kind == "demos" else "",
         "episodes": tr.n_episodes,
         "beta_hat": pt["beta_hat"] if pt else float("nan"),
-        **{f"theta_{f}": (pt["theta_hat"][i] if pt else float("nan")) for i, f in enumerate(feats)},
-        **{c: (pt["groups"][c[2:]] if pt else float("nan")) for c in GROUP_COLUMNS},
+        **{f"theta_{f}": (pt["theta_hat"][i] if pt else math.nan) for i, f in enumerate(mdp.feature_names)},
+        **{c: (pt["groups"][c[2:]] if pt and pt["groups"] else float("nan")) for c in GROUP_COLUMNS},
         **counts,
         **{f"optimal_{k}": v for k, v in counts_opt.items()},
         "optimal_reached_goal": ok,
         **ingestion,
     }
     doc = {
-        "task": t.index, "line": t.line, "map": str(t.map_path), "map_digest": map_digest(t.plan),
+        "task": t.index, "line": t.line, "map": str(t.map_path), "map_digest": task_map_digest(t),
         t.kind: str(t.source), f"{t.kind}_digest": file_digest(t.source),
         "episodes": tr.n_episodes, "actions": len(tr),
-        "counts": counts, "optimal_counts": counts_opt, "optimal_reached_goal": ok,
+        **({"extra": t.extra} if t.extra else {}),
+        "counts": finite_or_null(counts), "optimal_counts": finite_or_null(counts_opt),
+        "optimal_reached_goal": ok,
         **ingestion,
         **({"discretised": t.discretised.summary()} if t.discretised is not None else {}),
-        **({"beta_hat": pt["beta_hat"], "theta_hat": pt["theta_hat"], "group_probabilities": pt["groups"]}
-           if pt else {}),
+        **({"beta_hat": pt["beta_hat"], "theta_hat": pt["theta_hat"]} if pt else {}),
+        **({"group_probabilities": pt["groups"]} if pt and pt["groups"] else {}),
+        **({"marginals": {"theta": pt["theta_marginal"]}} if pt and pt.get("theta_marginal") else {}),
     }
     return _TaskReport(panel, row, doc, counts, counts_opt, ok)
 
 
-def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine) -> dict[str, Any]:
-    """The ``settings`` of a participant's result.json."""
+def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine, grid) -> dict[str, Any]:
+    """The ``settings`` of a participant's result.json (``hyp``: their hypothesis set, discrete)."""
     settings = {
         "command": "study", "manifest": str(manifest.path), "participant": pid,
-        "method": opts.method, "model": opts.model, "rate": opts.rate, "max_dt": opts.max_dt,
-        "fill_gaps": opts.fill_gaps, "snap": opts.snap, "optimal_beta": OPTIMAL_BETA,
+        "method": opts.method, "model": opts.model, "share": opts.share, "rate": opts.rate,
+        "max_dt": opts.max_dt, "fill_gaps": opts.fill_gaps, "snap": opts.snap, "optimal_beta": OPTIMAL_BETA,
         **({"models": list(opts.models)} if opts.models else {}),
     }
     if opts.method == "discrete":
         settings.update({"thetas": opts.thetas, "betas": opts.betas, "n_theta": hyp.n_theta,
                          "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform",
-                         "gamma": [t.plan.gamma for t in mine]})
+                         "beta_grid": hyp.betas.tolist(),
+                         "beta_grid_source": ({k: v for k, v in grid.items() if k != "betas"} if grid
+                                              else f"--betas {opts.betas}"),
+                         "gamma": [t.mdp.gamma for t in mine]})
     return settings
 
 
@@ -482,76 +664,146 @@ def _result_doc(est, opts: StudyOptions, settings, names, n_tasks: int, episodes
         doc["settings"] = settings
         return doc
     res = dict(est["doc"])
+    shape = None
     if res.get("draws"):  # stored as JSON; continuous_result takes (chain, θ, β) arrays
         dr = res["draws"]
-        res["draws"] = (np.asarray(dr["chain"]), np.asarray(dr["theta"]), np.asarray(dr["beta"]))
-    doc = continuous_result(res, method=opts.method, feature_names=names, settings=settings,
+        theta = np.asarray(dr["theta"], dtype=float)
+        shape = theta.shape[1:]
+        res["draws"] = (np.asarray(dr["chain"]), theta.reshape(len(theta), -1), np.asarray(dr["beta"]))
+    per_task = shape is not None and len(shape) == 2
+    cols = [f"task{j + 1}_{f}" for j in range(shape[0]) for f in names] if per_task else names
+    doc = continuous_result(res, method=opts.method, feature_names=cols, settings=settings,
                             data={"tasks": n_tasks, "episodes": episodes},
                             samples_path=samples_path_for(d / "result.json"))
+    doc["feature_names"] = list(names)
+    if per_task and isinstance(doc.get("samples"), dict):
+        doc["samples"]["theta"] = np.asarray(doc["samples"]["theta"]).reshape(-1, *shape).tolist()
     doc["modes"] = []
     return doc
 
 
-def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, opts: StudyOptions, hyp,
-                        names, evidence) -> tuple[dict[str, Any], list[dict[str, Any]], list]:
-    """Write ``pdir/ID/result.json`` and ``pdir/ID/ID.png``; return the participant's ``study.csv``
-    row, their ``tasks.csv`` rows and the modes of their posterior."""
-    from ..plots.userstudy import render_participant_png
+def _sum_counts(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """A participant's counts over their tasks: sums, the mean steps to goal over the episodes that
+    reached one, and Table V's counts only when every task defines them."""
+    out: dict[str, Any] = {}
+    for k in parts[0]:
+        vals = [p[k] for p in parts]
+        if k == "steps_to_goal":
+            n = [p["goal_reached"] for p in parts]
+            out[k] = (sum(v * m for v, m in zip(vals, n, strict=True) if m) / sum(n)) if sum(n) else math.nan
+        elif any(isinstance(v, float) and math.isnan(v) for v in vals):
+            out[k] = math.nan
+        else:
+            out[k] = sum(vals)
+    return out
 
-    feats = list(names)
+
+def _joined(values: list[str]) -> str:
+    """A participant's value of an extra column: the value when their rows agree, else the distinct
+    values in row order joined by ``;``."""
+    return ";".join(dict.fromkeys(values))
+
+
+def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, opts: StudyOptions,
+                        evidence, grid) -> tuple[dict[str, Any], list[dict[str, Any]], list, tuple]:
+    """Write ``pdir/ID/result.json``; return the participant's ``study.csv`` row, their ``tasks.csv``
+    rows, the modes of their posterior and their figure's job."""
     mine = manifest.tasks_of(pid)
-    parts = [_task_report(pid, t, optimal, est["per_task"][j] if est["per_task"] else None, feats)
+    names = tuple(mine[0].mdp.feature_names)
+    hyp = est["hypotheses"]
+    parts = [_task_report(pid, t, optimal, est["per_task"][j] if est["per_task"] else None,
+                          est["task_theta"][j])
              for j, t in enumerate(mine)]
-    total = {k: sum(p.counts[k] for p in parts) for k in COUNTS}
-    total_opt = {k: sum(p.optimal_counts[k] for p in parts) for k in COUNTS}
+    total = _sum_counts([p.counts for p in parts])
+    total_opt = _sum_counts([p.optimal_counts for p in parts])
     reached = sum(p.reached for p in parts)
     filled, snapped = sum(t.filled_gaps for t in mine), sum(t.snapped_samples for t in mine)
     episodes = sum(t.trajectories.n_episodes for t in mine)
-    settings = _settings(manifest, pid, opts, hyp, mine)
+    settings = _settings(manifest, pid, opts, hyp, mine, grid)
     d = pdir / pid
     d.mkdir(exist_ok=True)
     doc = _result_doc(est, opts, settings, names, len(mine), episodes, d)
     doc["participant"] = pid
+    extra = {c: _joined([t.extra[c] for t in mine]) for c in manifest.extra_columns}
+    if extra:
+        doc["extra"] = extra
     doc["tasks"] = [p.doc for p in parts]
-    doc["counts"] = total
-    doc["optimal_counts"] = total_opt
+    doc["counts"] = finite_or_null(total)
+    doc["optimal_counts"] = finite_or_null(total_opt)
     doc["filled_gaps"], doc["snapped_samples"] = filled, snapped
     if evidence is not None:
         doc["model_evidence"] = finite_or_null(evidence[pid])
+    doc = finite_or_null(doc)
     write_json(d / "result.json", doc)
-    render_participant_png(d / f"{pid}.png", pid, [p.panel for p in parts], doc)
     groups = est["groups"]
+    theta = doc["theta_hat"]
+    bs = doc["beta_summary"]
+    held = doc["heldout"]
     row = {
-        "participant": pid, "tasks": len(mine), "episodes": episodes,
-        "beta_hat": float(doc["beta_hat"]),
-        **{f"theta_{f}": float(doc["theta_hat"][i]) for i, f in enumerate(feats)},
-        **{c: (groups[c[2:]] if groups else float("nan")) for c in GROUP_COLUMNS},
+        "participant": pid, **extra, "tasks": len(mine), "episodes": episodes,
+        "beta_hat": _f(doc["beta_hat"]),
+        **{f"theta_{f}": (_f(theta[i]) if theta is not None else math.nan) for i, f in enumerate(names)},
+        **{c: (groups[c[2:]] if groups else math.nan) for c in GROUP_COLUMNS},
         **total,
         **{f"optimal_{k}": v for k, v in total_opt.items()},
         "optimal_reached_goal": reached, "filled_gaps": filled, "snapped_samples": snapped,
+        **{f"beta_{k}": _f(bs[k]) for k in ("mean", "median", "geomean", "q05", "q95")},
+        "share": opts.share,
+        "heldout_split": held["split"], "heldout_actions": held["actions"],
+        "heldout_log_likelihood_per_action": _f(held["per_action"]),
+        "warnings": len(doc.get("diagnostics", {}).get("warnings") or []),
     }
-    return row, [p.row for p in parts], doc.get("modes", [])
+    job = (d / f"{pid}.png", pid, [p.panel for p in parts], doc)
+    return row, [p.row for p in parts], doc.get("modes", []), job
 
 
-def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyp, names,
-             evidence=None) -> list[dict[str, Any]]:
-    """Every participant's files, then ``study.csv``, ``tasks.csv``, ``study.md`` (and ``models.csv``)."""
+def _f(x) -> float:
+    return math.nan if x is None else float(x)
+
+
+def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyps, names,
+             evidence, grid, report: ReportOptions) -> tuple[list[dict[str, Any]], list[tuple]]:
+    """Every participant's result, then ``study.csv``, ``tasks.csv``, ``study.md`` (and ``models.csv``);
+    returns the ``study.csv`` rows and the figures' jobs."""
     pdir = out / "participants"
     pdir.mkdir(exist_ok=True)
-    study_rows, task_rows, modes = [], [], {}
+    study_rows, task_rows, modes, warnings, jobs = [], [], {}, {}, []
     for pid in manifest.participants:
-        row, rows, modes[pid] = _participant_report(pdir, manifest, pid, estimates[pid], optimal, opts, hyp,
-                                                    names, evidence)
+        row, rows, modes[pid], job = _participant_report(pdir, manifest, pid, estimates[pid], optimal, opts,
+                                                         evidence, grid)
+        warnings[pid] = job[3].get("diagnostics", {}).get("warnings") or []
         study_rows.append(row)
         task_rows += rows
+        jobs.append(job)
     feats = list(names)
-    write_csv(out / "study.csv", study_rows, study_columns(feats))
-    write_csv(out / "tasks.csv", task_rows, task_columns(feats))
-    md = study_markdown(study_rows, feats, method=opts.method, n_hypotheses=len(hyp) if hyp else None,
-                        modes=modes, title=f"Study {manifest.path.name}")
+    extra = list(manifest.extra_columns)
+    write_csv(out / "study.csv", study_rows, study_columns(feats, extra=extra))
+    write_csv(out / "tasks.csv", task_rows, task_columns(feats, extra=extra))
+    any_hyp = next(iter(hyps.values()), None)
+    md = study_markdown(study_rows, feats, method=opts.method,
+                        n_hypotheses=" / ".join(str(len(h)) for h in hyps.values()) or None,
+                        modes=modes, title=f"Study {manifest.path.name}", share=opts.share,
+                        warnings=warnings, grid=grid, betas=any_hyp.betas.tolist() if any_hyp else None)
+    if report.group_by is not None:
+        from .groups import group_markdown
+
+        md += group_markdown(study_rows, report.group_by, columns=extra)
     if evidence is not None:
         write_csv(out / "models.csv", model_evidence.models_rows(evidence),
                   model_evidence.models_columns(opts.models))
         md += model_evidence.evidence_markdown(evidence, opts.models, opts.model)
     (out / "study.md").write_text(md, encoding="utf-8")
-    return study_rows
+    return study_rows, jobs
+
+
+def _draw(out: Path, jobs, chosen: list[str], rows, names, manifest: Manifest, workers, scheduler,
+          on_figure) -> None:
+    """The participants' figures chosen by ``--figures`` (in parallel) and the study's figure."""
+    from ..plots.study_overview import render_study_png
+    from .figures import draw_figures
+
+    pick = set(chosen)
+    todo = [j for j in jobs if j[1] in pick]
+    if todo:
+        draw_figures(todo, workers=workers, scheduler=scheduler, on_progress=on_figure)
+    render_study_png(out / "study.png", rows, list(names), title=f"Study {manifest.path.name}")

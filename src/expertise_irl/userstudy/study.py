@@ -1,14 +1,17 @@
 """The engine's side of ``expertise-irl study``: the tasks of a user study (Sec. VIII).
 
-Three studies, each a pure function of a config that carries the study's data (floor plans
-as text and every task's (state, action) pairs, as one JSON string), so workers need no
-access to the participants' files and a changed input is a different sweep:
+Three studies, each a pure function of a config that carries the study's data (every map:
+floor plans and zone maps as text, MDP archives as their bytes in base64; and every task's
+(state, action) pairs, as one JSON string), so workers need no access to the participants'
+files and a changed input is a different sweep:
 
-- ``user-study-discrete``: one task per distinct floor plan. It solves the hypothesis set
-  once on that plan and returns, for every manifest row on it, the log-likelihood of each
-  hypothesis: participants who share a map share one solve.
-- ``user-study-continuous``: one task per participant (``--method map|nuts``), the
-  log-likelihoods of all their tasks summed.
+- ``user-study-discrete``: one task per distinct map. It solves the hypothesis set once on
+  that map and returns, for every episode of every manifest row on it, the log-likelihood of
+  each hypothesis: participants who share a map share one solve, and the per-episode values
+  give the joint posterior (their sum) and every held-out split without another solve.
+- ``user-study-continuous``: one task per participant (``--method map|nuts``): with
+  ``share = "both"`` one (θ, β) for all their tasks (log-likelihoods summed), with
+  ``share = "beta"`` one β and a θ per task (:mod:`..inference.shared_beta`).
 - ``user-study-optimal``: one task per floor plan; it solves β = 0.001 for the estimates θ̂
   of every participant with a task on it and follows the most probable action from each
   episode's start (Table VI).
@@ -16,11 +19,13 @@ access to the participants' files and a changed input is a different sweep:
 
 from __future__ import annotations
 
+import base64
 import json
 import time
 import zlib
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -28,13 +33,15 @@ from ..errors import InputError
 from ..experiments.spec import Column, Study, TaskSpec
 
 METHODS = ("discrete", "map", "nuts")
+#: What a participant's tasks share: ``both`` one (θ, β); ``beta`` one β, a θ per task.
+SHARES = ("both", "beta")
 
 
 @dataclass(frozen=True)
 class UserStudyConfig:
     """Data and options of one user study (the CLI builds it from the manifest)."""
 
-    data: str  # JSON: {"maps": {key: plan}, "tasks": [task]} (see userstudy.run)
+    data: str  # JSON: {"maps": {key: map entry}, "tasks": [task]} (see userstudy.run)
     thetas: str = "paper-real"
     betas: str = "paper-real"
     model: str = "maxent"
@@ -44,10 +51,13 @@ class UserStudyConfig:
     chains: int = 4
     warmup: int = 500
     samples: int = 500
+    share: str = "both"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise InputError(f"--method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.share not in SHARES:
+            raise InputError(f"--share must be one of {', '.join(SHARES)}, got {self.share!r}")
 
 
 @lru_cache(maxsize=4)
@@ -55,21 +65,38 @@ def _data(text: str) -> dict:
     return json.loads(text)
 
 
+def world_entry(world, mdp_bytes: bytes | None = None, name: str = "") -> dict:
+    """The engine's copy of a task's map: a floor plan or zone map as text and settings, or an MDP
+    archive's bytes (``world`` None) in base64."""
+    from ..worlds.warehouse import WarehouseMap
+
+    if world is None:
+        return {"kind": "mdp", "name": name, "npz": base64.b64encode(mdp_bytes).decode("ascii")}
+    entry = {"text": world.to_text(), "name": Path(world.name).name, "goal_bonus": world.goal_bonus,
+             "gamma": world.gamma, "goal_reward_mode": world.goal_reward_mode}
+    if isinstance(world, WarehouseMap):
+        return {"kind": "floor-plan", **entry, "cell_size": world.cell_size, "y_up": world.y_up}
+    return {"kind": "zones", **entry}
+
+
 @lru_cache(maxsize=16)
 def _plan_mdp(text: str, key: str):
+    """(map or None, MDP) of the study's map ``key``."""
+    from ..mdp import TabularMDP
     from ..worlds.warehouse import parse_floor_plan
+    from ..worlds.zones import parse_map
 
     p = _data(text)["maps"][key]
-    plan = parse_floor_plan(
-        p["text"],
-        name=p["name"],
-        cell_size=p["cell_size"],
-        goal_bonus=p["goal_bonus"],
-        gamma=p["gamma"],
-        y_up=p["y_up"],
-        goal_reward_mode=p.get("goal_reward_mode", "scaled"),
-    )
-    return plan, plan.to_mdp()
+    kind = p.get("kind", "floor-plan")
+    if kind == "mdp":
+        return None, TabularMDP.from_bytes(base64.b64decode(p["npz"]), source=p["name"])
+    common = dict(name=p["name"], goal_bonus=p["goal_bonus"], gamma=p["gamma"],
+                  goal_reward_mode=p.get("goal_reward_mode", "scaled"))
+    if kind == "zones":
+        world = parse_map(p["text"], **common)
+    else:
+        world = parse_floor_plan(p["text"], cell_size=p["cell_size"], y_up=p["y_up"], **common)
+    return world, world.to_mdp()
 
 
 def _hypotheses(cfg: UserStudyConfig, n_features: int):
@@ -97,7 +124,7 @@ def _participant_tasks(cfg: UserStudyConfig) -> list[TaskSpec]:
 
 # ------------------------------------------------------------------------ discrete
 def run_discrete(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
-    """Log-likelihood of every hypothesis for every manifest row on one floor plan."""
+    """Log-likelihood of every hypothesis for every episode of every manifest row on one map."""
     from ..planning.soft_vi import solve
     from ..planning.table_likelihood import log_likelihood
 
@@ -109,12 +136,17 @@ def run_discrete(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, d
     solve_time = time.perf_counter() - t0
     rows = [t for t in _data(cfg.data)["tasks"] if t["map"] == key]
     H = len(hyp)
-    cols = {"task": [], "participant": [], "hypothesis": [], "log_likelihood": []}
+    cols = {"task": [], "participant": [], "episode": [], "hypothesis": [], "log_likelihood": []}
     for t in rows:
-        cols["task"].append(np.full(H, t["task"]))
-        cols["participant"].append(np.full(H, t["participant"], dtype=object))
-        cols["hypothesis"].append(np.arange(H))
-        cols["log_likelihood"].append(log_likelihood(sol.log_policy, t["states"], t["actions"]))
+        labels = np.asarray(t["episodes"])
+        states, actions = np.asarray(t["states"]), np.asarray(t["actions"])
+        for e, label in enumerate(dict.fromkeys(labels.tolist())):
+            mask = labels == label
+            cols["task"].append(np.full(H, t["task"]))
+            cols["participant"].append(np.full(H, t["participant"], dtype=object))
+            cols["episode"].append(np.full(H, e))
+            cols["hypothesis"].append(np.arange(H))
+            cols["log_likelihood"].append(log_likelihood(sol.log_policy, states[mask], actions[mask]))
     columns = {k: np.concatenate(v) for k, v in cols.items()}
     return columns, {"set_solve_time_s": solve_time, "set_solves": 1, "hypotheses_solved": H}
 
@@ -154,6 +186,17 @@ def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict,
             )
         )
     method = get_method(cfg.method)
+    if cfg.share == "beta":
+        from ..inference.shared_beta import fit_shared_beta
+
+        opts = method.options_from(dict(starts=cfg.starts, chains=cfg.chains, warmup=cfg.warmup,
+                                        samples=cfg.samples, prior=cfg.prior, model=cfg.model))
+        res = fit_shared_beta(cfg.method, mdps, trajs, opts, participant_seed(pid) + int(seed))
+        if "draws" in res:
+            chain, theta, beta = res.pop("draws")
+            res["draws"] = {"chain": chain, "theta": theta, "beta": beta}
+        doc = json.dumps(_jsonable(res), allow_nan=False)
+        return {"participant": np.array([pid], dtype=object), "result": np.array([doc], dtype=object)}, {}
     opts = method.options_from(dict(
         starts=cfg.starts,
         chains=cfg.chains,
@@ -217,13 +260,15 @@ _PARTICIPANT = Column("participant", "string", "participant ID")
 def _study(name: str, tasks, run_task, columns: tuple[Column, ...], sort_by: tuple[str, ...],
            description: str, version: int = 2) -> Study:
     """A user-study study: its config carries the data, so it has no scales. Version 2: over-relaxed
-    solves (values move within the tolerance)."""
+    solves (values move within the tolerance); 3: any map (zone maps, MDP archives), per-episode
+    log-likelihoods, ``share``."""
     return Study(name=name, version=version,
                  description=description, config_type=UserStudyConfig, scales={}, tasks=tasks,
                  run_task=run_task, columns=columns, sort_by=sort_by)
 
 
 _DISCRETE_COLUMNS = (_TASK, _PARTICIPANT,
+                     Column("episode", "int32", "episode of the row (0-based, in file order)"),
                      Column("hypothesis", "int32", "hypothesis index (θ-major, β fastest)"),
                      Column("log_likelihood", "float64", "log P(Ξ_row | h) (−inf: impossible)"))
 _CONTINUOUS_COLUMNS = (_PARTICIPANT, Column("result", "string", "the method's result fields (JSON)"))
@@ -232,11 +277,14 @@ _OPTIMAL_COLUMNS = (_TASK, _PARTICIPANT, Column("episode", "int32", "episode of 
                     Column("action", "int32", "action"),
                     Column("reached_goal", "bool", "the path ends in a goal"))
 
-DISCRETE = _study("user-study-discrete", _map_tasks, run_discrete, _DISCRETE_COLUMNS, ("task", "hypothesis"),
-                  "expertise-irl study: one solve per floor plan, log-likelihoods of every manifest row")
+DISCRETE = _study("user-study-discrete", _map_tasks, run_discrete, _DISCRETE_COLUMNS,
+                  ("task", "episode", "hypothesis"),
+                  "expertise-irl study: one solve per map, log-likelihoods of every episode of every row",
+                  version=3)
 CONTINUOUS = _study("user-study-continuous", _participant_tasks, run_continuous, _CONTINUOUS_COLUMNS,
-                    ("participant",), "expertise-irl study --method map|nuts: one task per participant")
+                    ("participant",), "expertise-irl study --method map|nuts: one task per participant",
+                    version=3)
 OPTIMAL = _study("user-study-optimal", _map_tasks, run_optimal, _OPTIMAL_COLUMNS, ("task", "episode", "step"),
-                 "expertise-irl study: optimal paths (β = 0.001, θ̂) per floor plan")
+                 "expertise-irl study: optimal paths (β = 0.001, θ̂) per map", version=3)
 #: Registered as the entry point ``user-study`` (group ``expertise_irl.studies``, in pyproject.toml).
 STUDIES = (DISCRETE, CONTINUOUS, OPTIMAL)
