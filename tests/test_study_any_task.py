@@ -310,3 +310,28 @@ def test_share_beta_with_map_is_the_libraries_shared_beta_fit(mixed):
     row = read_csv(out / "study.csv")[0]
     assert row["share"] == "beta" and row["theta_length"] == "" and row["heldout_split"] == "none"
     assert "needs --method discrete" in doc["heldout"]["unavailable"]
+
+
+def test_a_bump_into_a_wall_is_written_in_the_state_form_and_read_back(tmp_path):
+    """On a grid with a layout, a move that stays in its cell cannot be an x,y row: ``auto`` writes
+    the state,action form (which a study reads on the same archive), ``grid`` refuses, naming it."""
+    from expertise_irl.demos.csv_io import read_demos_csv
+    from expertise_irl.demos.trajectories import Trajectories
+    from expertise_irl.errors import InputError
+    from expertise_irl.mdp import TabularMDP
+
+    # A corridor of 3 cells, goal on the right; up and down bump into the walls.
+    nxt = np.array([[0, 0, 0, 1], [1, 1, 0, 2], [2, 2, 2, 2]])
+    mdp = TabularMDP(next_state=nxt, features=-np.ones((3, 4, 1)), terminal=np.array([False, False, True]),
+                     feature_names=("length",), state_xy=np.array([[0, 0], [1, 0], [2, 0]]))
+    tr = Trajectories(np.zeros(3, int), np.arange(3), np.array([0, 0, 1]), np.array([0, 3, 3]))
+    write_demos_csv(tmp_path / "d.csv", tr, mdp)
+    assert (tmp_path / "d.csv").read_text().startswith("episode,step,state,action\n")
+    back = read_demos_csv(tmp_path / "d.csv", mdp)
+    assert back.state.tolist() == [0, 0, 1] and back.action.tolist() == [0, 3, 3]
+    with pytest.raises(InputError, match="episode 0 step 0: the move stays in its cell"):
+        write_demos_csv(tmp_path / "g.csv", tr, mdp, fmt="grid")
+    # Without a bump, auto still writes cells.
+    write_demos_csv(tmp_path / "c.csv", Trajectories(np.zeros(2, int), np.arange(2), np.array([0, 1]),
+                                                     np.array([3, 3])), mdp)
+    assert (tmp_path / "c.csv").read_text().startswith("episode,step,x,y\n")

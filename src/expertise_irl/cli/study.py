@@ -44,7 +44,7 @@ def study(
         str, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values.")
     ] = "paper-real",
     betas: Annotated[
-        str, typer.Option(help="B: auto (from the maps' soft values: 1e-3 to 10 times the median gap "
+        str, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 10 times the median gap "
                           "between a state's two best actions, 3 per decade), a preset (paper-real, "
                           "paper-sim) or temperatures.")
     ] = "auto",
@@ -156,7 +156,8 @@ def _run(path: Path, out: Path, opts, workers: int | None, scheduler: str | None
         _say(f"{len(exc.failures)} {exc.phase} task(s) failed; run the same command again to retry them")
         raise typer.Exit(1) from None
     finally:
-        bar.stop()
+        if bar_task is not None:
+            bar.stop()
     return outcome
 
 
@@ -169,10 +170,12 @@ def _print_outcome(outcome, out: Path) -> None:
         own = [f for f in names if not math.isnan(r.get(f"theta_{f}", math.nan))]
         theta = ("[" + ", ".join(f"{f} {r[f'theta_{f}']:.2f}" for f in own) + "]") if own else "per task"
         held = r["heldout_log_likelihood_per_action"]
+        band = "" if math.isnan(r["beta_q05"]) else f" (90% {r['beta_q05']:.3g}–{r['beta_q95']:.3g})"
         _say(
-            f"{r['participant']}: β̂ = {r['beta_hat']:.3g} (90% {r['beta_q05']:.3g}–{r['beta_q95']:.3g}), "
+            f"{r['participant']}: β̂ = {r['beta_hat']:.3g}{band}, "
             f"θ̂ = {theta}, path length {r['path_length']} (optimal {r['optimal_path_length']}), "
-            f"held-out {'n/a' if math.isnan(held) else f'{held:.3f}'} nats/action"
+            + (f"held-out {held:.3f} nats/action ({r['heldout_split']})" if not math.isnan(held)
+               else "no held-out check")
             + (f", filled gaps {r['filled_gaps']}, snapped samples {r['snapped_samples']}"
                if r["filled_gaps"] or r["snapped_samples"] else "")
             + (f", {r['warnings']} warning(s)" if r["warnings"] else "")
@@ -189,7 +192,7 @@ def _print_outcome(outcome, out: Path) -> None:
     _say(
         f"wrote {out}/{wrote} and participants/: {len(outcome.participants)} "
         f"participants, {t.get('figures', 0)} figure(s); {outcome.tasks_run} engine task(s) run, "
-        f"{outcome.tasks_skipped} already done ({outcome.wall_time_s:.1f} s: inference "
-        f"{t.get('inference_s', 0):.1f} s, reports {t.get('reports_s', 0):.1f} s, figures "
-        f"{t.get('figures_s', 0):.1f} s)"
+        f"{outcome.tasks_skipped} already done ({outcome.wall_time_s:.1f} s: reading and the β grid "
+        f"{t.get('setup_s', 0):.1f} s, inference {t.get('inference_s', 0):.1f} s, reports "
+        f"{t.get('reports_s', 0):.1f} s, figures {t.get('figures_s', 0):.1f} s)"
     )

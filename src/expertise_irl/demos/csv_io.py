@@ -68,18 +68,24 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
         cell the last action leads to (needs ``mdp.state_xy``, 4 actions, one state per
         cell); in a heading world (``mdp.state_heading``) one state per cell and heading,
         and a ``heading`` column (``h``/``v``) is added. ``"auto"``: grid when the MDP is
-        such a grid, else state.
+        such a grid and no move stays in its cell (a bump into a wall: x,y rows cannot say which
+        way it went), else state.
     """
     if fmt not in ("auto", "state", "grid"):
         raise InputError(f"fmt must be 'auto', 'state' or 'grid', got {fmt!r}")
     validate(trajs, mdp)
     if len(trajs) == 0:
         raise InputError(f"{where(path)}no demonstrations to write")
+    ep, step, s, a = trajs.episode, trajs.step, trajs.state, trajs.action
+    stays = (mdp.next_state[s, a] == s) if mdp.state_heading is None else np.zeros(len(s), dtype=bool)
     if fmt == "auto":
-        fmt = "grid" if _cell_index(mdp) is not None else "state"
+        fmt = "grid" if _cell_index(mdp) is not None and not stays.any() else "state"
     if fmt == "grid":
         _require_grid(mdp, path)
-    ep, step, s, a = trajs.episode, trajs.step, trajs.state, trajs.action
+        if stays.any():
+            i = int(np.argmax(stays))
+            raise InputError(f"{where(path)}episode {int(ep[i])} step {int(step[i])}: the move stays in its "
+                             "cell, which episode,step,x,y rows cannot say; write the state,action form")
     heading = mdp.state_heading if fmt == "grid" else None
     with open(path, "w", encoding="utf-8", newline="") as fh:
         out = csv.writer(fh, lineterminator="\n")
@@ -227,7 +233,9 @@ def _grid_pairs(path: str | Path, mdp: TabularMDP, v: np.ndarray, lines: np.ndar
         (is_cell & (state < 0), lambda i: (
             f"cell (x={x[i]}, y={y[i]}) with heading {_HEADING_LETTERS[heading[i]]} is not a state "
             "of the map")),
-        (same & (dist == 0), lambda i: f"cell (x={x[i]}, y={y[i]}) repeats the previous cell (a zero move)"),
+        (same & (dist == 0), lambda i: f"cell (x={x[i]}, y={y[i]}) repeats the previous cell (a zero move; "
+                                       "a move that stays in place, e.g. into a wall, needs the "
+                                       "episode,step,state,action form)"),
         (same & (dist > 1), lambda i: (
             f"jumps from ({x[i - 1]},{y[i - 1]}) to ({x[i]},{y[i]}); consecutive cells must be "
             "adjacent (one move up, down, left or right)")),

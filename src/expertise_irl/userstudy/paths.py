@@ -118,7 +118,7 @@ def task_counts(plan: WarehouseMap | None, mdp: TabularMDP, states, actions, epi
             steps.append(len(m))
     out["goal_reached"] = reached
     out["steps_to_goal"] = float(np.mean(steps)) if steps else float("nan")
-    out["cost_theta_hat"] = float(-(phi @ np.asarray(theta, dtype=float)).sum())
+    out["cost_theta_hat"] = float(-(phi @ np.asarray(theta, dtype=float)).sum()) + 0.0  # (no −0.0)
     for i, f in enumerate(mdp.feature_names):
         out[f"feature_{f}"] = float(phi[:, i].sum())
     return out

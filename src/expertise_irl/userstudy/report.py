@@ -137,20 +137,23 @@ def study_markdown(
     warnings: dict[str, list[str]] | None = None,
     grid: dict[str, Any] | None = None,
     betas: Sequence[float] | None = None,
+    heldout_unavailable: dict[str, str] | None = None,
+    sections: str = "",
 ) -> str:
     """The study's summary: warnings counted, β and θ̂ per participant, every world's path counts,
     Tables V–VI where the maps are floor plans, the modes, the held-out check, what ingestion
-    changed, and each participant's warnings."""
+    changed, ``sections`` (e.g. ``--group-by``'s) and each participant's warnings."""
     warnings = warnings or {}
     feats = ", ".join(feature_names)
     lines = [f"# {title}", ""]
-    what = f"{n_hypotheses} hypotheses" if n_hypotheses else method
+    what = (f"{n_hypotheses} hypotheses; fewer for a participant whose constant features are kept at 0"
+            if n_hypotheses else method)
     shared = ("one (θ, β) per participant over all their tasks" if share == "both"
               else "one β per participant, a θ per task (θ̂ per task in tasks.csv)")
     n_warn = sum(len(w) for w in warnings.values())
     lines += [f"Method: {method} ({what}); --share {share}: {shared}. Features: {feats}.", ""]
     if betas is not None:
-        source = (f"chosen from the maps' soft values (--betas auto): {grid['rule']}" if grid
+        source = (f"chosen from the maps' optimal values Q* (--betas auto): {grid['rule']}" if grid
                   else "given by --betas")
         lines += [f"β grid: {', '.join(f'{b:g}' for b in betas)} ({source}).", ""]
     lines += [f"**Warnings: {n_warn}** for {sum(1 for w in warnings.values() if w)} of {len(rows)} "
@@ -159,7 +162,11 @@ def study_markdown(
         "## Estimates",
         "",
         "β̂ is the posterior mean; the median, the geometric mean exp E[log β] and the 90% interval "
-        "[q05, q95] beside it.",
+        "[q05, q95] beside it. P(high / medium / low) is the posterior mass of the paper's expertise "
+        "groups, by absolute β (high < 0.212 ≤ medium < 2.24 ≤ low) whatever the grid; β is in reward "
+        "units, so on maps whose rewards differ more per move the same person has a larger β. "
+        "Held-out: log-likelihood per held-out action (0 is perfect, −1.39 a uniform choice of four "
+        "moves) and its split.",
         "",
         "| participant | β̂ | median | geo. mean | 90% interval | θ̂ | P(high / medium / low) "
         "| held-out / action |",
@@ -188,7 +195,7 @@ def study_markdown(
     for r in rows:
         lines.append(f"| {r['participant']} | {r['path_length']} | {r['goal_reached']}/{r['episodes']} | "
                      f"{_num(r['steps_to_goal'])} | {_num(r['cost_theta_hat'])} | "
-                     + " | ".join(_num(r.get(f"feature_{f}", math.nan)) for f in feature_names) + " |")
+                     + " | ".join(_num(r.get(f"feature_{f}", math.nan), 6) for f in feature_names) + " |")
     plan_rows = [r for r in rows if _has(r, "path_cost")]
     if plan_rows:
         lines += [
@@ -230,6 +237,14 @@ def study_markdown(
                 for m in ms
             ]
             lines.append(f"- {p}: " + "; ".join(parts))
+    unavailable = {p: why for p, why in (heldout_unavailable or {}).items() if why}
+    if unavailable:
+        lines += ["", "## Held-out check not available", ""]
+        by_reason: dict[str, list[str]] = {}
+        for p, why in unavailable.items():
+            by_reason.setdefault(why, []).append(p)
+        for why, ps in by_reason.items():
+            lines.append(f"- {', '.join(ps)}: {why}")
     fixed = [r for r in rows if r["filled_gaps"] or r["snapped_samples"]]
     lines += ["", "## Ingestion", ""]
     if fixed:
@@ -240,6 +255,8 @@ def study_markdown(
             )
     else:
         lines.append("No gap was filled and no sample snapped.")
+    if sections:
+        lines += ["", sections.strip("\n")]
     lines += ["", "## Warnings", ""]
     if n_warn:
         for pid, ws in warnings.items():

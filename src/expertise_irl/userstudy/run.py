@@ -4,7 +4,7 @@ Steps (each engine phase is resumable: a finished task is not run again):
 
 1. read the manifest and every map (floor plan, zone map, bundled map or MDP archive),
    recording and demonstrations file (any problem stops here, naming the manifest line);
-   with ``--betas auto`` (the default) choose the β grid from the maps' soft values
+   with ``--betas auto`` (the default) choose the β grid from the maps' optimal values Q*
    (:func:`.diagnostics.auto_beta_grid`);
 2. inference on the engine, in ``DIR/engine/inference``: for ``discrete`` one task per
    distinct map (one solve of the hypothesis set, shared by every participant on it; the
@@ -64,7 +64,8 @@ STUDY_FILE = "study.json"
 LAYOUT = 2
 
 
-#: ``--betas auto``: the study's β grid from the maps' soft values (:func:`.diagnostics.auto_beta_grid`).
+#: ``--betas auto``: the study's β grid from the maps' optimal values Q*
+#: (:func:`.diagnostics.auto_beta_grid`).
 AUTO_BETAS = "auto"
 
 
@@ -109,7 +110,8 @@ class StudyOutcome:
     wall_time_s: float
     feature_names: tuple[str, ...]
     evidence: dict[str, dict[str, Any]] | None = None  # --models: per participant
-    timing: dict[str, float] | None = None  # seconds: inference (engine phases), reports, figures
+    # seconds: setup (inputs, β grid), inference (engine phases), reports, figures
+    timing: dict[str, float] | None = None
 
 
 def map_key(world) -> str:
@@ -371,8 +373,8 @@ def run_study(
     ran = s1.ran + s2.ran + sum(s.ran for s in s_models)
     skipped = s1.skipped + s2.skipped + sum(s.skipped for s in s_models)
     return StudyOutcome(out, participants, ran, skipped, time.perf_counter() - t0, names, evidence,
-                        {"inference_s": inference_s, "reports_s": report_s, "figures_s": figures_s,
-                         "figures": len(figures_for)})
+                        {"setup_s": t_inf - t0, "inference_s": inference_s, "reports_s": report_s,
+                         "figures_s": figures_s, "figures": len(figures_for)})
 
 
 def check_extra_columns(manifest: Manifest) -> None:
@@ -780,14 +782,17 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
     write_csv(out / "study.csv", study_rows, study_columns(feats, extra=extra))
     write_csv(out / "tasks.csv", task_rows, task_columns(feats, extra=extra))
     any_hyp = next(iter(hyps.values()), None)
-    md = study_markdown(study_rows, feats, method=opts.method,
-                        n_hypotheses=" / ".join(str(len(h)) for h in hyps.values()) or None,
-                        modes=modes, title=f"Study {manifest.path.name}", share=opts.share,
-                        warnings=warnings, grid=grid, betas=any_hyp.betas.tolist() if any_hyp else None)
+    sections = ""
     if report.group_by is not None:
         from .groups import group_markdown
 
-        md += group_markdown(study_rows, report.group_by, columns=extra)
+        sections = group_markdown(study_rows, report.group_by, columns=extra)
+    md = study_markdown(study_rows, feats, method=opts.method,
+                        n_hypotheses=" / ".join(str(len(h)) for h in hyps.values()) or None,
+                        modes=modes, title=f"Study {manifest.path.name}", share=opts.share,
+                        warnings=warnings, grid=grid, betas=any_hyp.betas.tolist() if any_hyp else None,
+                        heldout_unavailable={j[1]: j[3]["heldout"].get("unavailable") for j in jobs},
+                        sections=sections)
     if evidence is not None:
         write_csv(out / "models.csv", model_evidence.models_rows(evidence),
                   model_evidence.models_columns(opts.models))
