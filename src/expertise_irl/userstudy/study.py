@@ -167,7 +167,8 @@ def _jsonable(x):
 
 
 def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
-    """MAP or NUTS on all of one participant's tasks (their log-likelihoods summed)."""
+    """MAP or NUTS on all of one participant's tasks: one (θ, β), their log-likelihoods summed, or with
+    ``share = "beta"`` one β and a θ per task."""
     from ..demos.trajectories import Trajectories
     from ..inference.methods import get_method
 
@@ -186,26 +187,15 @@ def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict,
             )
         )
     method = get_method(cfg.method)
-    if cfg.share == "beta":
+    opts = method.options_from(dict(starts=cfg.starts, chains=cfg.chains, warmup=cfg.warmup,
+                                    samples=cfg.samples, prior=cfg.prior, model=cfg.model))
+    seed = participant_seed(pid) + int(seed)
+    if cfg.share == "beta":  # one β, a θ per task
         from ..inference.shared_beta import fit_shared_beta
 
-        opts = method.options_from(dict(starts=cfg.starts, chains=cfg.chains, warmup=cfg.warmup,
-                                        samples=cfg.samples, prior=cfg.prior, model=cfg.model))
-        res = fit_shared_beta(cfg.method, mdps, trajs, opts, participant_seed(pid) + int(seed))
-        if "draws" in res:
-            chain, theta, beta = res.pop("draws")
-            res["draws"] = {"chain": chain, "theta": theta, "beta": beta}
-        doc = json.dumps(_jsonable(res), allow_nan=False)
-        return {"participant": np.array([pid], dtype=object), "result": np.array([doc], dtype=object)}, {}
-    opts = method.options_from(dict(
-        starts=cfg.starts,
-        chains=cfg.chains,
-        warmup=cfg.warmup,
-        samples=cfg.samples,
-        prior=cfg.prior,
-        model=cfg.model,
-    ))
-    res = method.run(mdps, trajs, opts, participant_seed(pid) + int(seed)).fields
+        res = fit_shared_beta(cfg.method, mdps, trajs, opts, seed)
+    else:
+        res = method.run(mdps, trajs, opts, seed).fields
     if "draws" in res:
         chain, theta, beta = res.pop("draws")
         res["draws"] = {"chain": chain, "theta": theta, "beta": beta}
