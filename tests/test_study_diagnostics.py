@@ -152,12 +152,12 @@ def test_q_gaps_of_a_corridor_by_hand():
     gmed = (0.5 * g * (1 + g) + g**3 * (1 + g)) / 2
     assert info["q_gap_median"] == pytest.approx(gmed, rel=1e-9)
     assert info["n_gaps"] == 6
-    assert (info["low"], info["high"], info["per_decade"]) == (1e-3, 10.0, 3)
+    assert (info["low"], info["high"], info["per_decade"]) == (1e-3, 100.0, 3)
     assert "median" in info["rule"] and "\n" not in info["rule"]
-    # 4 decades at 3 per decade: 13 values, both ends included, 3 significant figures.
-    raw = np.logspace(math.log10(1e-3 * gmed), math.log10(10 * gmed), 13)
+    # 5 decades at 3 per decade: 16 values, both ends included, 3 significant figures.
+    raw = np.logspace(math.log10(1e-3 * gmed), math.log10(100 * gmed), 16)
     np.testing.assert_array_equal(betas, [float(f"{b:.3g}") for b in raw])
-    assert betas[0] == float(f"{1e-3 * gmed:.3g}") and betas[-1] == float(f"{10 * gmed:.3g}")
+    assert betas[0] == float(f"{1e-3 * gmed:.3g}") and betas[-1] == float(f"{100 * gmed:.3g}")
 
 
 def test_exact_ties_are_left_out():
@@ -228,7 +228,9 @@ def test_default_grid_on_the_bundled_corridor_with_the_paper_real_set():
     # Measured (and the plain solver above agrees on its subset): g ≈ 0.326 over 7,893 gaps.
     assert info["q_gap_median"] == pytest.approx(0.3257, rel=1e-3)
     assert info["n_gaps"] == 7893
-    assert len(betas) == 13 and np.all(np.diff(betas) > 0)
+    assert len(betas) == 16 and np.all(np.diff(betas) > 0)
+    # The paper's low-expertise group (β = 5, 10) lies inside the default grid on this zone map.
+    assert betas[-1] > 10
 
 
 @pytest.mark.slow  # a 4,604-state plan at γ = 0.99: ~9 s with the solver's compilation

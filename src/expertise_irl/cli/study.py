@@ -44,7 +44,7 @@ def study(
         str, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values.")
     ] = "paper-real",
     betas: Annotated[
-        str, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 10 times the median gap "
+        str, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 100 times the median gap "
                           "between a state's two best actions, 3 per decade), a preset (paper-real, "
                           "paper-sim) or temperatures.")
     ] = "auto",

@@ -38,8 +38,12 @@ the real gaps on open maps and drag the median down tenfold (zones30: 0.011 agai
 
 The grid is log-spaced from ``low·g`` to ``high·g`` with ``per_decade`` points per decade
 (``ceil(per_decade·log10(high/low))`` intervals, both ends included), each value rounded to 3
-significant figures (duplicates after rounding kept once). With the defaults (1e-3, 10, 3) it has
-13 values spanning 4 decades around g.
+significant figures (duplicates after rounding kept once). With the defaults (1e-3, 100, 3) it
+has 16 values spanning 5 decades around g. The ends: at β = 1e-3·g a choice between actions g
+apart is 1 in e^1000 wrong, an expert beyond anything the data can tell from optimal; at
+β = 100·g it is 99% uniform. The top must be that high for the paper's own noisy people: its
+low-expertise group has β = 5–10 on zone maps whose g is 0.13–0.33 (zones30, corridor), where a
+grid ending at 10·g would stop at 1.3–3.3 and every noisy person would pile on its edge.
 """
 
 from __future__ import annotations
@@ -63,7 +67,7 @@ TIE_ATOL = 1e-9
 #: solver's absolute error, tol·β, far below the tie threshold).
 PROBE_BETA = 1e-3
 #: The default grid's ends (multiples of g) and its density.
-AUTO_LOW, AUTO_HIGH, AUTO_PER_DECADE = 1e-3, 10.0, 3
+AUTO_LOW, AUTO_HIGH, AUTO_PER_DECADE = 1e-3, 100.0, 3
 
 
 def _as_mdps(mdps, *, same_features: bool = True) -> list[TabularMDP]:
