@@ -205,6 +205,10 @@ def infer(
         help="discrete (hypothesis set, Eq. 13), birl (Algorithm 1), map (L-BFGS on the simplex) "
         "or nuts (full posterior).")] = "discrete",
     model: ModelOption = "maxent",
+    expertise: Annotated[str, typer.Option(
+        help="discrete: stationary (one β for every episode, the paper's) or changing (a β per "
+        "episode, a sticky chain on the β grid: the learning curve, its Bayes factor against "
+        "stationary and the trend; beta_hat stays the stationary estimate).")] = "stationary",
     prior: Annotated[str, typer.Option(
         help="birl, map, nuts: the prior. log-uniform (default): θ uniform, log β uniform on "
         "[0.001, 100]; paper (Sec. VII-A): θ uniform, β ~ Normal(5.005, 1.5) truncated to "
@@ -280,6 +284,12 @@ def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
         _say("90% credible interval of β: none (a chain did not move in β; see the warning)")
     elif ci:
         _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
+    if doc.get("changing"):
+        ch, curve, tr = doc["changing"], doc["expertise_by_episode"], doc["trend"]
+        bf = ch["log_bayes_factor"]
+        _say(f"changing expertise: log Bayes factor {bf:.2f} against one β (P(changing) = "
+             f"{ch['p_changing']:.3g}); β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g}, "
+             f"P(β falls from the first episode to the last) = {tr['p_falls']:.2f}")
     for w in doc["diagnostics"].get("warnings", []):
         _warn(w)
     extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""

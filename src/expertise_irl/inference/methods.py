@@ -43,6 +43,10 @@ Progress = Callable[[int, int], None] | None
 Note = Callable[[str], None] | None
 
 
+#: ``--expertise``: one β for every episode (the paper's), or a β per episode that may change.
+EXPERTISE = ("stationary", "changing")
+
+
 # ----------------------------------------------------------------------------- options
 def _check_prior_and_model(prior: str, model: str) -> None:
     if prior not in PRIORS:
@@ -61,10 +65,13 @@ class DiscreteOptions:
     tol: float = 1e-8  # soft value iteration tolerance (nats)
     chunk_size: int | None = None  # hypotheses in flight in the solver
     model: str = DEFAULT_MODEL
+    expertise: str = "stationary"  # or "changing": β_e per episode (inference.changing)
 
     def __post_init__(self) -> None:
         if not (0 < self.tol <= MAX_TOL):
             raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {self.tol:g}")
+        if self.expertise not in EXPERTISE:
+            raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
 
     max_draws = 0
 
@@ -154,6 +161,7 @@ class DiscreteFit(NamedTuple):
     posterior: Any  # DiscreteBelief
     trace: Any  # Trace | None
     trace_index: tuple[np.ndarray, np.ndarray]  # episode and step of each traced action
+    changing: Any = None  # --expertise changing: (ChangingPosterior, episode labels)
 
 
 def _setup_discrete(mdp, opts: DiscreteOptions, seed: Seed, note: Note = None):
@@ -169,7 +177,13 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
                                     progress=progress)
     post = start.update(trajs, per_action=opts.per_action)
     trace = start.trace(trajs) if opts.per_action else None
-    return DiscreteFit(post, trace, (trajs.episode, trajs.step))
+    changing = None
+    if opts.expertise == "changing":
+        from .changing import changing_posterior, episode_log_likelihoods
+
+        cp = changing_posterior(episode_log_likelihoods(start.log_policy, trajs), hyp)
+        changing = (cp, list(trajs.episode_ids))
+    return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing)
 
 
 def _announce(mdp, opts, seed: Seed, note: Note = None) -> str:
@@ -219,7 +233,16 @@ def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = No
 def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[str, Any]:
     from .diagnostics import discrete_warnings
 
-    return {"diagnostics": {"warnings": discrete_warnings(fit.posterior, names)}}
+    out: dict[str, Any] = {"diagnostics": {"warnings": discrete_warnings(fit.posterior, names)}}
+    if fit.changing is not None:  # beside beta_hat, which stays the stationary estimate
+        from .changing import changing_summary, expertise_by_episode, trend_summary
+
+        cp, labels = fit.changing
+        out["expertise_by_episode"] = expertise_by_episode(cp, [int(x) for x in labels])
+        out["changing"] = changing_summary(cp)
+        out["trend"] = trend_summary(cp)
+        out["theta_hat_changing"] = (cp.theta_probabilities @ cp.hypotheses.thetas).tolist()
+    return out
 
 
 def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
@@ -290,7 +313,12 @@ def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any
     hyp = fit.posterior.hypotheses
     return {"thetas": opts.thetas, "betas": opts.betas, "sample_thetas": opts.sample_thetas,
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform",
-            "model": opts.model, "per_action": opts.per_action, "tol": opts.tol}
+            "model": opts.model, "per_action": opts.per_action, "tol": opts.tol,
+            "expertise": opts.expertise,
+            **({"epsilons": list(fit.changing[0].epsilons.tolist()),
+                "epsilon_prior": "P(ε = 0) = 1/2, the rest uniform over ε > 0",
+                "chain": "β_1 uniform; stay 1 − ε, else a neighbouring grid value (ε/2 each side)"}
+               if fit.changing is not None else {})}
 
 
 def _continuous_settings(fit, opts) -> dict[str, Any]:

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from ..errors import plural
 from ..hypotheses import GROUP_NAMES as GROUPS
@@ -354,14 +355,18 @@ def result_figure(
         map_w, map_h = _map_panel_size(mdp, zone_map, trajs)
         post_h = max(post_h, map_h)
     trace_h = 5.2 if trace else 0.0
+    curve = doc.get("expertise_by_episode") if method == "discrete" else None
+    curve_h = 3.0 if curve else 0.0
     warnings = result_warnings(doc)
     warn_h = 0.25 + 0.16 * min(len(warnings), 4) if warnings else 0.0
-    fig = maps.new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + warn_h + 0.6))
-    heights = [h for h in (post_h, trace_h, warn_h) if h > 0]
+    fig = maps.new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + curve_h + warn_h + 0.6))
+    heights = [h for h in (post_h, trace_h, curve_h, warn_h) if h > 0]
     rows = list(fig.subfigures(len(heights), 1, height_ratios=heights, hspace=0.02)) if len(
         heights) > 1 else [fig]
     top = rows[0]
     bottom = rows[1] if trace else None
+    if curve:
+        draw_learning_curve(rows[2 if trace else 1].subplots(1, 1), doc, truth.get("beta_by_episode"))
     sf_warn = rows[-1] if warnings else None
     sf_post = _draw_map_panel(top, map_w, 3.0 * ncols, mdp, zone_map, trajs) if draw_map else top
     axes = sf_post.subplots(nrows, ncols, squeeze=False).ravel()
@@ -385,6 +390,42 @@ def result_figure(
     if sf_warn is not None:
         _draw_warnings(sf_warn, warnings)
     return fig
+
+
+def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
+    """``--expertise changing``: β̂_e (posterior mean) with its 90% band against the episode, the
+    median as dots, and the stationary β̂ as a line; the true β_e in red when the result has it.
+
+    gids: ``"curve-band"``, ``"curve-mean"``, ``"curve-median"``, ``"curve-stationary"``,
+    ``"curve-truth"``.
+    """
+    curve = doc["expertise_by_episode"]
+    x = np.arange(1, len(curve) + 1)
+    get = {k: np.array([c[k] for c in curve], dtype=float) for k in ("mean", "median", "q05", "q95")}
+    ax.fill_between(x, get["q05"], get["q95"], step=None, color="#a5c8ed", alpha=0.7, lw=0,
+                    label="90% interval of β_e", gid="curve-band")
+    ax.plot(x, get["mean"], color="#1f4e8c", lw=1.8, marker="o", ms=3.5, label="β̂_e (mean)", gid="curve-mean")
+    ax.plot(x, get["median"], ls="none", marker="_", ms=9, color="#c2255c", label="median",
+            gid="curve-median")
+    ax.axhline(doc["beta_hat"], color="#495057", ls="--", lw=1.2,
+               label=f"one β for all episodes: β̂ = {doc['beta_hat']:.3g}", gid="curve-stationary")
+    if isinstance(beta_true, list) and len(beta_true) == len(curve):
+        ax.plot(x, beta_true, color="#d62728", lw=1.2, marker="x", ms=4, label="true β_e", gid="curve-truth")
+    ax.set_yscale("log")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("episode (in the order given)", fontsize=8.5)
+    ax.set_ylabel("β (log scale; low = expert)", fontsize=8.5)
+    ch, tr = doc.get("changing") or {}, doc.get("trend") or {}
+    bf = ch.get("log_bayes_factor")
+    title = "expertise by episode: " + (f"log Bayes factor {bf:.2f} for changing against one β, "
+                                        f"P(changing) = {ch.get('p_changing', float('nan')):.3g}"
+                                        if is_number(bf) else "")
+    if is_number(tr.get("p_falls")):
+        title += f"; P(β falls) = {tr['p_falls']:.2f}"
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7.5, loc="best", frameon=False)
+    maps.tidy(ax)
+    return ax
 
 
 def _title(doc: dict[str, Any], source: Path, subtitle: str) -> str:

@@ -1,0 +1,82 @@
+"""``infer --expertise changing``: the learning curve in the result, its summary, and ``plot``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from cli_helpers import assert_input_error, invoke, ok
+
+from expertise_irl.demos.csv_io import write_demos_csv
+from expertise_irl.demos.simulation import simulate
+from expertise_irl.demos.trajectories import Trajectories
+from expertise_irl.worlds.maps import load_bundled_world
+
+THETA = np.array([0.5, 0.25, 0.25, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def learner(tmp_path_factory):
+    """A person on crossroads whose β falls log-linearly from 2 to 0.05 over 12 episodes
+    (``maxent-relative``, so that the noisy early episodes still end at the goal)."""
+    d = tmp_path_factory.mktemp("learner")
+    mdp = load_bundled_world("crossroads").to_mdp()
+    rng = np.random.default_rng(0)
+    betas = np.exp(np.linspace(np.log(2.0), np.log(0.05), 12))
+    parts = []
+    for e, b in enumerate(betas):
+        t = simulate(mdp, THETA, b, 1, rng, model="maxent-relative")
+        parts.append(Trajectories(np.full(len(t), 10 + e), t.step, t.state, t.action))
+    tr = Trajectories(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("episode", "step", "state",
+                                                                                 "action")))
+    write_demos_csv(d / "demos.csv", tr, mdp)
+    common = ("infer", "crossroads", "--demos", d / "demos.csv", "--model", "maxent-relative")
+    ok(invoke(*common, "--out", d / "stationary.json"))
+    res = invoke(*common, "--expertise", "changing", "--out", d / "changing.json")
+    ok(res)
+    return d, betas, res
+
+
+def test_the_result_has_the_learning_curve_beside_the_stationary_estimate(learner):
+    from scipy.stats import spearmanr
+
+    d, betas, res = learner
+    doc = json.loads((d / "changing.json").read_text())
+    still = json.loads((d / "stationary.json").read_text())
+    # beta_hat and theta_hat stay the stationary estimate, identical to a stationary run's.
+    assert doc["beta_hat"] == still["beta_hat"] and doc["theta_hat"] == still["theta_hat"]
+    curve = doc["expertise_by_episode"]
+    assert [c["episode"] for c in curve] == list(range(10, 22))  # the file's labels, in order
+    for c in curve:
+        assert c["q05"] <= c["median"] <= c["q95"]
+    # 12 episodes falling 40-fold: the curve follows them and the evidence favours change.
+    assert spearmanr(betas, [c["mean"] for c in curve]).statistic >= 0.8
+    ch = doc["changing"]
+    assert ch["log_bayes_factor"] > 0 and ch["p_changing"] > 0.5 and 0 < ch["epsilon_mean"] <= 0.2
+    assert doc["trend"]["p_falls"] > 0.5 and doc["trend"]["log_ratio_mean"] < 0
+    assert doc["settings"]["expertise"] == "changing" and doc["settings"]["epsilons"][0] == 0.0
+    assert still["settings"]["expertise"] == "stationary" and "expertise_by_episode" not in still
+    assert "changing expertise: log Bayes factor" in res.stdout
+
+
+def test_plot_draws_the_learning_curve(learner):
+    from expertise_irl.plots.results import result_figure
+
+    d, _, _ = learner
+    doc = json.loads((d / "changing.json").read_text())
+    fig = result_figure(doc, source=d / "changing.json")
+    gids = {a.get_gid() for ax in fig.get_axes() for a in ax.get_children()}
+    assert {"curve-band", "curve-mean", "curve-median", "curve-stationary"} <= gids
+    ok(invoke("plot", d / "changing.json", "--out", d / "curve.png"))
+    assert (d / "curve.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_changing_expertise_is_refused_where_it_is_not_built(learner):
+    d, _, _ = learner
+    base = ("infer", "crossroads", "--demos", d / "demos.csv", "--out", d / "x.json")
+    assert_input_error(invoke(*base, "--expertise", "sometimes"),
+                       "--expertise must be one of stationary, changing")
+    assert_input_error(invoke(*base, "--expertise", "changing", "--method", "map"),
+                       "--expertise applies only to --method discrete")
+    assert not (d / "x.json").exists()
