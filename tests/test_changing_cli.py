@@ -80,3 +80,59 @@ def test_changing_expertise_is_refused_where_it_is_not_built(learner):
     assert_input_error(invoke(*base, "--expertise", "changing", "--method", "map"),
                        "--expertise applies only to --method discrete")
     assert not (d / "x.json").exists()
+
+
+def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
+    """Four learners (β falling 2 → 0.05 over 8 episodes, 4 per task, two tasks on crossroads) and
+    one steady person: each participant's curve runs over their tasks in manifest order and is the
+    library's on their episodes; study.md counts who improves and gives the sign test."""
+    import csv
+
+    from expertise_irl.demos.csv_io import read_demos_csv
+    from expertise_irl.inference.changing import changing_posterior, trend_summary
+    from expertise_irl.inference.methods import DiscreteOptions
+    from expertise_irl.planning.soft_vi import solve
+    from expertise_irl.planning.table_likelihood import log_likelihood
+
+    mdp = load_bundled_world("crossroads").to_mdp()
+    rng = np.random.default_rng(3)
+    lines = ["participant,map,demos"]
+    people = {f"L{i}": np.exp(np.linspace(np.log(2.0), np.log(0.05), 8)) for i in range(4)}
+    people["S"] = np.full(8, 0.3)
+    for pid, betas in people.items():
+        for task in range(2):
+            parts = []
+            for e in range(4):
+                t = simulate(mdp, THETA, betas[4 * task + e], 1, rng, model="maxent-relative")
+                parts.append(Trajectories(np.full(len(t), e), t.step, t.state, t.action))
+            tr = Trajectories(*(np.concatenate([getattr(p, k) for p in parts])
+                                for k in ("episode", "step", "state", "action")))
+            write_demos_csv(tmp_path / f"{pid}-{task}.csv", tr, mdp)
+            lines.append(f"{pid},crossroads,{pid}-{task}.csv")
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    ok(invoke("study", tmp_path / "m.csv", "--out", out, "--workers", "1", "--betas", "paper-sim",
+              "--model", "maxent-relative", "--expertise", "changing", "--figures", "none"))
+    rows = {r["participant"]: r for r in csv.DictReader(open(out / "study.csv", encoding="utf-8"))}
+    assert sum(float(rows[f"L{i}"]["trend_p_falls"]) > 0.5 for i in range(4)) == 4
+    md = (out / "study.md").read_text()
+    falls = sum(float(r["trend_p_falls"]) > 0.5 for r in rows.values())
+    assert f"**Do people improve?** {falls} of 5 participants" in md
+    # L0's curve: 8 episodes over its two tasks, the library's result on them.
+    doc = json.loads((out / "participants" / "L0" / "result.json").read_text())
+    curve = doc["expertise_by_episode"]
+    order = [(c["task"], c["task_episode"]) for c in curve]
+    assert order == [(0, e) for e in range(4)] + [(1, e) for e in range(4)]
+    hyp = DiscreteOptions(thetas="paper-real", betas="paper-sim").hypotheses(5)
+    lp = solve(mdp, hyp.theta, hyp.beta, model="maxent-relative").log_policy
+    ell = [log_likelihood(lp, s, a) for task in range(2)
+           for s, a in read_demos_csv(tmp_path / f"L0-{task}.csv", mdp).episodes()]
+    cp = changing_posterior(np.stack(ell), hyp)
+    assert doc["trend"]["p_falls"] == pytest.approx(trend_summary(cp)["p_falls"], abs=1e-9)
+    np.testing.assert_allclose([c["mean"] for c in curve], cp.mean_beta, rtol=1e-9)
+    # Where the model does not apply, the study says so before doing anything.
+    for extra, msg in ((("--share", "beta"), "needs --share both"),
+                       (("--method", "map"), "needs --method discrete")):
+        assert_input_error(invoke("study", tmp_path / "m.csv", "--out", tmp_path / "x",
+                                  "--expertise", "changing", *extra), msg)
+    assert not (tmp_path / "x").exists()

@@ -71,6 +71,12 @@ def study(
         typer.Option(help="What a participant's tasks share: both (one θ and one β) or beta (one β, "
                      "a θ per task: tasks with different rewards)."),
     ] = "both",
+    expertise: Annotated[
+        str,
+        typer.Option(help="stationary (one β per participant) or changing (discrete, --share both: a β "
+                     "per episode in task order; each participant's learning curve and trend, and "
+                     "in study.md a sign test of whether people improve)."),
+    ] = "stationary",
     figures: Annotated[
         str,
         typer.Option(help="Participant figures to draw: all, none, or N (the first N participants). "
@@ -120,6 +126,7 @@ def study(
         model=model,
         models=compared,
         share=share,
+        expertise=expertise,
     )
     report = ReportOptions(figures=figures, group_by=group_by)
     _print_outcome(_run(path, out, opts, workers, scheduler, report), out)

@@ -120,6 +120,38 @@ def _num(x: float, digits: int = 3) -> str:
     return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}g}"
 
 
+#: ``study --expertise changing``: each participant's Bayes factor and trend.
+CHANGING_COLUMNS = ("changing_log_bf", "p_changing", "trend_p_falls", "trend_p_rises", "trend_log_ratio")
+
+
+def changing_markdown(rows: Sequence[dict[str, Any]]) -> str:
+    """``--expertise changing``: do people improve over the study? The share of participants with
+    P(β falls from their first episode to their last) > 0.5, with a two-sided sign test against
+    1/2, then each participant's Bayes factor and trend."""
+    from scipy.stats import binomtest
+
+    usable = [r for r in rows if _has(r, "trend_p_falls")]
+    falls = sum(r["trend_p_falls"] > 0.5 for r in usable)
+    rises = sum(r["trend_p_rises"] > 0.5 for r in usable)
+    n = len(usable)
+    lines = ["## Expertise over the study (--expertise changing)", ""]
+    if n:
+        p = binomtest(falls, n, 0.5).pvalue
+        lines += [f"**Do people improve?** {falls} of {n} participants are more likely than not to "
+                  f"end more expert than they began (P(β falls) > 0.5); a two-sided sign test against "
+                  f"1/2 gives p = {p:.3g}. {rises} are more likely than not to end less expert; the others "
+                  "most likely keep their expertise.", ""]
+    lines += ["Per participant, episodes in task order: the log Bayes factor for a β that changes "
+              "against one β (> 0 favours change), P(changing), P(β falls from the first episode to "
+              "the last) and E[log β_last − log β_first] (negative: improves; −0.69 is halving).", "",
+              "| participant | log BF | P(changing) | P(β falls) | E[log β_last/β_first] |",
+              "|---|---|---|---|---|"]
+    for r in usable:
+        lines.append(f"| {r['participant']} | {r['changing_log_bf']:.2f} | {_num(r['p_changing'])} | "
+                     f"{r['trend_p_falls']:.2f} | {r['trend_log_ratio']:+.2f} |")
+    return "\n".join(lines) + "\n\n"
+
+
 def _has(r: dict[str, Any], c: str) -> bool:
     v = r.get(c)
     return v is not None and not (isinstance(v, float) and math.isnan(v))

@@ -50,7 +50,9 @@ from . import posteriors
 from .manifest import Manifest, StudyTask, read_manifest
 from .paths import OPTIMAL_BETA, task_counts
 from .report import (
+    CHANGING_COLUMNS,
     GROUP_COLUMNS,
+    changing_markdown,
     posterior_modes,
     study_columns,
     study_markdown,
@@ -83,6 +85,7 @@ class StudyOptions:
     model: str = "maxent"
     models: tuple[str, ...] = ()  # --models: observation models to compare (discrete only)
     share: str = "both"  # --share: both (one θ, β per participant) or beta (a θ per task)
+    expertise: str = "stationary"  # --expertise changing: a β per episode, in task order
 
 
 @dataclass(frozen=True)
@@ -164,6 +167,8 @@ def _identity(manifest: Manifest, opts: StudyOptions) -> dict[str, Any]:
         del options["models"]
     if opts.share == "both":  # (nor does one without --share beta)
         del options["share"]
+    if opts.expertise == "stationary":  # (nor without --expertise changing)
+        del options["expertise"]
     ident = {"layout": LAYOUT, "options": options, "inputs": files}
     ident["hash"] = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
     return ident
@@ -307,6 +312,7 @@ def run_study(
     t0 = time.perf_counter()
     check_model(opts.model, "--model")
     UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
+    check_expertise(opts)
     model_evidence.check_models(opts.models, opts.method)
     manifest = read_manifest(
         manifest_path, rate=opts.rate, max_dt=opts.max_dt, fill_gaps=opts.fill_gaps, snap=opts.snap
@@ -338,7 +344,7 @@ def run_study(
     s1 = _run_phase(study, out / "engine" / "inference", cfg, "inference", workers, scheduler, on_task)
     rows = engine.load(out / "engine" / "inference")
     if opts.method == "discrete":
-        estimates = _discrete_estimates(manifest, _episode_lls(rows), hyp, opts.share)
+        estimates = _discrete_estimates(manifest, _episode_lls(rows), hyp, opts.share, opts.expertise)
     else:
         estimates = _continuous_estimates(manifest, rows, opts.share)
     evidence, s_models = None, []
@@ -375,6 +381,18 @@ def run_study(
     return StudyOutcome(out, participants, ran, skipped, time.perf_counter() - t0, names, evidence,
                         {"setup_s": t_inf - t0, "inference_s": inference_s, "reports_s": report_s,
                          "figures_s": figures_s, "figures": len(figures_for)})
+
+
+def check_expertise(opts: StudyOptions) -> None:
+    """``--expertise changing`` needs the discrete set and one θ for all of a person's tasks."""
+    from ..inference.methods import EXPERTISE
+
+    if opts.expertise not in EXPERTISE:
+        raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {opts.expertise!r}")
+    if opts.expertise == "changing" and opts.method != "discrete":
+        raise InputError(f"--expertise changing needs --method discrete (got --method {opts.method})")
+    if opts.expertise == "changing" and opts.share != "both":
+        raise InputError("--expertise changing needs --share both (its θ is shared by every episode)")
 
 
 def check_extra_columns(manifest: Manifest) -> None:
@@ -445,7 +463,8 @@ def _constant(mine: list[StudyTask], names) -> tuple[list[int], list[str]]:
     return zero, [constant_feature_warning(names[i], v) for i, v in found]
 
 
-def _discrete_estimates(manifest: Manifest, ells, hyps, share: str) -> dict[str, dict[str, Any]]:
+def _discrete_estimates(manifest: Manifest, ells, hyps, share: str,
+                        expertise: str = "stationary") -> dict[str, dict[str, Any]]:
     from ..inference.belief import DiscreteBelief
     from ..inference.diagnostics import discrete_warnings
     from ..inference.multitask import MultiTaskBelief
@@ -497,11 +516,30 @@ def _discrete_estimates(manifest: Manifest, ells, hyps, share: str) -> dict[str,
                                         [[len(s) for s, _ in t.trajectories.episodes()] for t in mine],
                                         hyp, share, zero)
         doc["heldout"] = held
+        if expertise == "changing":
+            doc.update(changing_doc([ells[t.index] for t in mine], mine, hyp, zero))
         doc["diagnostics"] = {"warnings": warnings, "unavailable": {},
                               "kept_at_zero": [names[i] for i in zero]}
         out[pid] = {"doc": doc, "groups": groups, "per_task": per_task, "task_theta": task_theta,
                     "zero_features": zero, "hypotheses": hyp}
     return out
+
+
+def changing_doc(episode_ll, mine: list[StudyTask], hyp, zero) -> dict[str, Any]:
+    """``--expertise changing``: the participant's episodes in task order (the manifest's rows, then
+    each file's episodes) as one learning curve (:mod:`..inference.changing`), θ shared and kept at
+    0 on the participant's all-zero features; ``beta_hat`` stays the one-β estimate."""
+    from ..inference.changing import changing_posterior, changing_summary, expertise_by_episode, trend_summary
+
+    cp = changing_posterior(np.concatenate(episode_ll), hyp,
+                            log_prior_theta=posteriors.log_prior_theta(hyp, zero))
+    curve = expertise_by_episode(cp)
+    k = 0
+    for t in mine:
+        for label in t.trajectories.episode_ids:
+            curve[k].update(task=t.index, line=t.line, task_episode=int(label))
+            k += 1
+    return {"expertise_by_episode": curve, "changing": changing_summary(cp), "trend": trend_summary(cp)}
 
 
 def doc_beta_marginal(doc) -> tuple[list[float], list[float]]:
@@ -754,9 +792,20 @@ def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, 
         "heldout_split": held["split"], "heldout_actions": held["actions"],
         "heldout_log_likelihood_per_action": _f(held["per_action"]),
         "warnings": len(doc.get("diagnostics", {}).get("warnings") or []),
+        **changing_columns(doc),
     }
     job = (d / f"{pid}.png", pid, [p.panel for p in parts], doc)
     return row, [p.row for p in parts], doc.get("modes", []), job
+
+
+def changing_columns(doc) -> dict[str, float]:
+    """``--expertise changing``'s columns of ``study.csv`` (absent otherwise)."""
+    if "changing" not in doc:
+        return {}
+    ch, tr = doc["changing"], doc["trend"]
+    return {"changing_log_bf": _f(ch["log_bayes_factor"]), "p_changing": _f(ch["p_changing"]),
+            "trend_p_falls": _f(tr["p_falls"]), "trend_p_rises": _f(tr["p_rises"]),
+            "trend_log_ratio": _f(tr["log_ratio_mean"])}
 
 
 def _f(x) -> float:
@@ -779,14 +828,17 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         jobs.append(job)
     feats = list(names)
     extra = list(manifest.extra_columns)
-    write_csv(out / "study.csv", study_rows, study_columns(feats, extra=extra))
+    write_csv(out / "study.csv", study_rows, study_columns(feats, extra=extra)
+              + (list(CHANGING_COLUMNS) if opts.expertise == "changing" else []))
     write_csv(out / "tasks.csv", task_rows, task_columns(feats, extra=extra))
     any_hyp = next(iter(hyps.values()), None)
     sections = ""
+    if opts.expertise == "changing":
+        sections += changing_markdown(study_rows)
     if report.group_by is not None:
         from .groups import group_markdown
 
-        sections = group_markdown(study_rows, report.group_by, columns=extra)
+        sections += group_markdown(study_rows, report.group_by, columns=extra)
     md = study_markdown(study_rows, feats, method=opts.method,
                         n_hypotheses=" / ".join(str(len(h)) for h in hyps.values()) or None,
                         modes=modes, title=f"Study {manifest.path.name}", share=opts.share,
