@@ -136,3 +136,39 @@ def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
         assert_input_error(invoke("study", tmp_path / "m.csv", "--out", tmp_path / "x",
                                   "--expertise", "changing", *extra), msg)
     assert not (tmp_path / "x").exists()
+
+
+def test_the_filtered_beta_after_each_action_is_the_model_on_the_data_so_far():
+    """``filtered_by_action`` after action t equals the changing model run on everything up to t
+    (the finished episodes and the current one so far), its last filtered row; to 1e-12."""
+    from expertise_irl.hypotheses import HypothesisSet
+    from expertise_irl.inference.changing import changing_posterior, filtered_by_action
+
+    rng = np.random.default_rng(5)
+    hyp = HypothesisSet(np.array([[1.0, 0.0], [0.5, 0.5], [0.0, 1.0]]), np.array([0.1, 0.5, 2.0]))
+    index = np.array([0, 0, 0, 1, 1, 2, 2, 2, 2])
+    step = rng.normal(-1.5, 1.0, size=(len(index), len(hyp)))
+    step[4, 2] = -np.inf  # an impossible action under one hypothesis
+    live = filtered_by_action(step, index, hyp)
+    for t in range(len(index)):
+        e = index[t]
+        rows = [step[(index == k)].sum(axis=0) for k in range(e)]
+        rows.append(step[: t + 1][index[: t + 1] == e].sum(axis=0))
+        want = changing_posterior(np.stack(rows), hyp).beta_filtered[-1]
+        np.testing.assert_allclose(live[t], want, rtol=1e-12, atol=1e-15)
+
+
+def test_per_action_results_carry_the_current_episodes_beta(learner):
+    d, _, _ = learner
+    ok(invoke("infer", "crossroads", "--demos", d / "demos.csv", "--model", "maxent-relative",
+              "--expertise", "changing", "--per-action", "--out", d / "live.json"))
+    doc = json.loads((d / "live.json").read_text())
+    live = doc["expertise_trace"]
+    assert len(live) == doc["data"]["actions"] == len(doc["trace"]) - 1
+    assert [(x["episode"], x["step"]) for x in live] == [(t["episode"], t["step"]) for t in doc["trace"][1:]]
+    for x in live:
+        assert x["q05"] <= x["q95"]
+    # After the last action, filtering has seen everything: the smoothed last episode's β.
+    assert live[-1]["beta_mean"] == pytest.approx(doc["expertise_by_episode"][-1]["mean"], rel=1e-9)
+    # Early on the person is noisy, at the end expert: the live estimate falls with them.
+    assert live[0]["beta_mean"] > 5 * live[-1]["beta_mean"]

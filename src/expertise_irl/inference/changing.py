@@ -457,3 +457,46 @@ def trend_summary(posterior: ChangingPosterior) -> dict[str, float]:
     lb = np.log(posterior.hypotheses.betas)
     return {"p_falls": float(np.tril(joint, -1).sum()), "p_rises": float(np.triu(joint, 1).sum()),
             "log_ratio_mean": float(np.sum(joint * (lb[None, :] - lb[:, None])))}
+
+
+def filtered_by_action(step_ll, episode_index, hypotheses: HypothesisSet, *,
+                       epsilons: Sequence[float] = EPSILONS, trend: str | None = None,
+                       log_prior_theta=None) -> np.ndarray:
+    """``[N, n_beta]`` P(β_e | everything up to action t): the current episode's expertise after each
+    action, filtered (never using later actions), for a live display and ``--per-action`` traces.
+
+    ``step_ll [N, H]`` is log π_h(a_t | s_t) of each action in order; ``episode_index [N]`` the
+    0-based episode of each action (non-decreasing: episodes in order, each contiguous). After the
+    last action of an episode the row equals :func:`changing_posterior`'s ``beta_filtered`` of that
+    episode. Cost O(N · |ε| · |Θ| · |B|).
+    """
+    hyp = hypotheses
+    step = np.asarray(step_ll, dtype=np.float64)
+    ep = np.asarray(episode_index)
+    if step.ndim != 2 or step.shape[1] != len(hyp) or ep.shape != (step.shape[0],):
+        raise InputError(f"step_ll must be [N, {len(hyp)}] with one episode index per row, got "
+                         f"{step.shape} and {ep.shape}")
+    if step.shape[0] and (ep[0] != 0 or np.any(np.diff(ep) < 0) or np.any(np.diff(ep) > 1)):
+        raise InputError("episode_index must start at 0 and step by 0 or 1 (episodes in order, contiguous)")
+    eps = _check_epsilons(epsilons)
+    trend = _check_trend(trend)
+    n_t, J = hyp.n_theta, hyp.n_beta
+    lpt = _check_log_prior_theta(log_prior_theta, n_t)
+    lt = np.stack([transition_diagonals(J, e, trend) for e in eps])[:, None]  # [n_eps, 1, 3, J]
+    log_prior_eps = log_epsilon_prior(eps)
+    out = np.empty((step.shape[0], J))
+    done = None  # forward message after the last finished episode: [n_eps, θ, J]
+    partial = np.zeros((n_t, J))  # the current episode's log-likelihood so far
+    current = 0
+    for t in range(step.shape[0]):
+        if ep[t] != current:  # the previous episode ended: fold it into the message
+            start = np.full((eps.size, n_t, J), -np.log(J)) if done is None else _push(done, lt)
+            done = start + partial[None]
+            partial = np.zeros((n_t, J))
+            current = int(ep[t])
+        partial = partial + step[t].reshape(n_t, J)
+        prior = np.full((eps.size, n_t, J), -np.log(J)) if done is None else _push(done, lt)
+        lj = log_prior_eps[:, None] + _lse(prior + partial[None] + lpt[None, :, None], axis=1)  # [ε, J]
+        z = _lse(lj, axis=(0, 1))
+        out[t] = np.exp(lj - z).sum(axis=0) if np.isfinite(z) else np.nan
+    return out

@@ -182,7 +182,15 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
         from .changing import changing_posterior, episode_log_likelihoods
 
         cp = changing_posterior(episode_log_likelihoods(start.log_policy, trajs), hyp)
-        changing = (cp, list(trajs.episode_ids))
+        live = None
+        if opts.per_action:  # the current episode's β after each action, filtered
+            from .changing import filtered_by_action
+
+            order = {e: i for i, e in enumerate(trajs.episode_ids)}
+            index = np.array([order[e] for e in trajs.episode.tolist()])
+            step_ll = np.asarray(start.log_policy)[:, trajs.state, trajs.action].T
+            live = filtered_by_action(step_ll, index, hyp)
+        changing = (cp, list(trajs.episode_ids), live)
     return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing)
 
 
@@ -237,8 +245,17 @@ def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[s
     if fit.changing is not None:  # beside beta_hat, which stays the stationary estimate
         from .changing import changing_summary, expertise_by_episode, trend_summary
 
-        cp, labels = fit.changing
+        cp, labels, live = fit.changing
         out["expertise_by_episode"] = expertise_by_episode(cp, [int(x) for x in labels])
+        if live is not None:  # --per-action: one entry per action, in order
+            from .posterior import beta_quantile
+
+            b = cp.hypotheses.betas
+            episodes, steps = fit.trace_index
+            lo, hi = (beta_quantile(b, live.T, q) for q in (0.05, 0.95))
+            out["expertise_trace"] = [
+                {"episode": int(e), "step": int(s), "beta_mean": float(p @ b), "q05": float(a),
+                 "q95": float(c)} for e, s, p, a, c in zip(episodes, steps, live, lo, hi, strict=True)]
         out["changing"] = changing_summary(cp)
         out["trend"] = trend_summary(cp)
         out["theta_hat_changing"] = (cp.theta_probabilities @ cp.hypotheses.thetas).tolist()
