@@ -533,3 +533,23 @@ def test_live_and_next_start_commands_on_a_floor_plan(tmp_path, plan_path, monke
     ok(r)
     assert r.stdout.startswith("next start: ") and "expected information gain" in r.stdout
     assert_input_error(invoke("live", tmp_path / "nosuch.txt", "--port", 0), "nosuch.txt")
+
+
+def test_changing_expertise_reports_this_episodes_filtered_beta(tmp_path, zone_map, hyp):
+    """``expertise="changing"``: every state message carries the current episode's β, the changing
+    model filtered on the actions so far (none before the first action); a stationary session has none."""
+    import numpy as np
+
+    from expertise_irl.inference.changing import filtered_by_action
+
+    session, _ = make(zone_map, hyp, tmp_path / "c", expertise="changing")
+    assert session.state_message()["expertise_now"] is None
+    for a in path_to_goal(session.mdp, session.position)[:3]:
+        session.move(a)
+    now = session.state_message()["expertise_now"]
+    pairs = session.estimator._pairs
+    step = np.stack([session.estimator._table[p[2], p[3]] for p in pairs])
+    want = filtered_by_action(step, np.zeros(len(pairs), int), hyp)[-1]
+    assert now["episode"] == 0 and now["beta_mean"] == pytest.approx(float(want @ hyp.betas), rel=1e-12)
+    assert now["q05"] <= now["q95"]
+    assert "expertise_now" not in make(zone_map, hyp, tmp_path / "s")[0].state_message()

@@ -49,11 +49,11 @@ SERVER_START_S = 180  # the solve compiles JAX kernels on first use; generous fo
 
 
 @contextmanager
-def serving(map_path, out):
+def serving(map_path, out, *extra):
     """``expertise-irl live MAP --out OUT`` on a free port; yields its URL, stops it with Ctrl-C."""
     exe = Path(sys.executable).with_name("expertise-irl")
     proc = subprocess.Popen(
-        [str(exe), "live", str(map_path), "--thetas", "0,1", "--out", str(out), "--port", "0"],
+        [str(exe), "live", str(map_path), "--thetas", "0,1", "--out", str(out), "--port", "0", *extra],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "COLUMNS": "200"})
     url = None
@@ -168,6 +168,31 @@ def test_drive_an_episode_in_chromium(server, tmp_path):
         assert status in (400, 404), (path, status)
         assert b"import" not in body and b"root:" not in body
     assert raw_get(url, "/static/live.js")[0] == 200
+
+
+def test_changing_expertise_shows_this_episodes_beta_in_chromium(tmp_path):
+    """``live --expertise changing``: the page shows the current episode's β (filtered) beside β̂,
+    and it follows the moves."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
+    map_path = tmp_path / "room.txt"
+    map_path.write_text(MAP)
+    mdp = parse_map(MAP, name=str(map_path)).to_mdp()
+    index = parse_map(MAP).state_index()
+    expect = sync_api.expect
+    with serving(map_path, tmp_path / "rec", "--expertise", "changing") as url, \
+            live_page(sync_api, url) as (page, errors):
+        expect(page.locator("#beta-now-line")).to_be_visible()
+        assert page.locator("#beta-now").inner_text() == "–"  # nothing driven yet
+        x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
+        actions = path_to_goal(mdp, int(index[y, x]))
+        shown = []
+        for i, a in enumerate(actions[:3]):
+            page.keyboard.press(KEYS[ACTION_NAMES[a]][0])
+            expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+            shown.append(page.locator("#beta-now").inner_text())
+        assert all(re.match(r"[\d.e+-]+ \(90%: .+–.+, episode 0\)", t) for t in shown), shown
+        assert len(set(shown)) > 1, shown
+        assert not errors, errors
 
 
 PLAN = """\

@@ -52,6 +52,9 @@ def live(
         help="Address to bind. The default, 127.0.0.1, is reachable from this machine only.")] = "127.0.0.1",
     seed: Annotated[int, typer.Option(min=0, help="Seed of the start choices (active and random).")] = 0,
     goal_reward: GoalRewardOption = None,
+    expertise: Annotated[str, typer.Option(
+        help="changing: also show the β of the episode being driven, filtered from the actions so far "
+        "(a β per episode, docs/changing-expertise.md); stationary: one β (the default).")] = "stationary",
 ) -> None:
     """Serve a local page where a person drives on the map and the estimate updates after every action.
 
@@ -60,10 +63,13 @@ def live(
     most about θ and β, or a random one (a toggle on the page). Stop with Ctrl-C; run again
     with the same --out to continue.
     """
+    from ..inference.methods import EXPERTISE
     from ..live.server import bind, is_loopback, serve
     from ..live.session import check_out_dir, open_session
     from ..results import map_digest
 
+    if expertise not in EXPERTISE:
+        raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {expertise!r}")
     zone_map = load_map(map_spec, goal_reward)
     mdp = zone_map.to_mdp()
     hyp = _hypotheses(thetas, betas, mdp.n_features)
@@ -84,7 +90,8 @@ def live(
         prepare_solver()
         with _progress() as bar:
             session = open_session(zone_map, hyp, out_dir, settings=settings, seed=seed,
-                                   progress=_solve_progress(bar, "solving soft value iteration"))
+                                   progress=_solve_progress(bar, "solving soft value iteration"),
+                                   expertise=expertise)
     except BaseException:
         sock.close()
         raise

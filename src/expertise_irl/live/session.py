@@ -72,6 +72,7 @@ class LiveSession:
     start: StartChoice | None = None
     position: int = -1
     starts_log: list[dict[str, Any]] = field(default_factory=list)
+    expertise: str = "stationary"  # "changing": also show the current episode's β, filtered
 
     # ------------------------------------------------------------------ paths
     @property
@@ -278,7 +279,27 @@ class LiveSession:
             "estimate": est.to_dict(self.mdp.feature_names),
             "history": {"beta_hat": self.history_beta, "entropy": self.history_entropy,
                         "episode_starts": self.episode_starts},
+            **({"expertise_now": self.expertise_now()} if self.expertise == "changing" else {}),
         }
+
+    def expertise_now(self) -> dict[str, Any] | None:
+        """``--expertise changing``: the β of the episode being driven (or of the last one), filtered
+        from every action so far (:func:`~..inference.changing.filtered_by_action`), with its 90%
+        band; None before the first action."""
+        from ..inference.changing import filtered_by_action
+        from ..inference.posterior import beta_quantile
+
+        pairs = self.estimator._pairs
+        if not pairs:
+            return None
+        order = {e: i for i, e in enumerate(dict.fromkeys(p[0] for p in pairs))}
+        table = self.estimator._table  # [S, A, H]
+        step_ll = np.stack([table[p[2], p[3]] for p in pairs])
+        last = filtered_by_action(step_ll, np.array([order[p[0]] for p in pairs]),
+                                  self.estimator.hypotheses)[-1]
+        b = self.estimator.hypotheses.betas
+        return {"episode": int(pairs[-1][0]), "beta_mean": float(last @ b),
+                "q05": float(beta_quantile(b, last, 0.05)), "q95": float(beta_quantile(b, last, 0.95))}
 
 
 def validate_message(msg: Any) -> str | None:
@@ -304,14 +325,15 @@ def validate_message(msg: Any) -> str | None:
 def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, *,
                  settings: dict[str, Any] | None = None, seed: int = 0,
                  progress: Callable[[int, int], None] | None = None,
-                 n_samples: int = 48) -> LiveSession:
+                 n_samples: int = 48, expertise: str = "stationary") -> LiveSession:
     """Solve the hypotheses on the map and open (or resume) the recording in ``out_dir``."""
     out_dir = Path(out_dir)
     mdp = zone_map.to_mdp()
     trajs = check_out_dir(zone_map, out_dir, settings)
     out_dir.mkdir(parents=True, exist_ok=True)
     est = OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
-    session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples)
+    session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples,
+                          expertise=expertise)
     previous = _previous_live(out_dir / RESULT_NAME)
     session.mode = _previous_mode(previous, session.mode)
     if trajs is not None and len(trajs):

@@ -196,6 +196,10 @@
     state = s;
     const est = s.estimate;
     $("beta-hat").textContent = est.beta_hat.toPrecision(4);
+    const now = s.expertise_now;
+    $("beta-now-line").hidden = s.expertise_now === undefined;
+    $("beta-now").textContent = now ? now.beta_mean.toPrecision(3) + " (90%: " + fmtBeta(now.q05) + "–" +
+      fmtBeta(now.q95) + ", episode " + now.episode + ")" : "–";
     $("group").textContent = est.expertise_group + " expertise";
     $("entropy").textContent = "posterior entropy " + est.entropy.toFixed(3) + " nats of " +
       Math.log(info.n_hypotheses).toFixed(2) + " (" + info.n_hypotheses + " hypotheses)";
