@@ -114,7 +114,8 @@ def trend_objective(mdp: TabularMDP, trajs: Trajectories, *, tol: float = 1e-10,
         raise InputError("the learning curve takes one MDP and its trajectories")
     if len(trajs) == 0:
         raise InputError("need at least one demonstrated step")
-    parts = [make_log_likelihood(mdp, pair_counts(mdp, t), tol=tol, model=model) for t in split_episodes(trajs)]
+    parts = [make_log_likelihood(mdp, pair_counts(mdp, t), tol=tol, model=model)
+             for t in split_episodes(trajs)]
     g = episode_grid(len(parts))
 
     def f(theta, log_beta0, slope):
