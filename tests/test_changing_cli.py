@@ -77,8 +77,8 @@ def test_changing_expertise_is_refused_where_it_is_not_built(learner):
     base = ("infer", "crossroads", "--demos", d / "demos.csv", "--out", d / "x.json")
     assert_input_error(invoke(*base, "--expertise", "sometimes"),
                        "--expertise must be one of stationary, changing")
-    assert_input_error(invoke(*base, "--expertise", "changing", "--method", "map"),
-                       "--expertise applies only to --method discrete")
+    assert_input_error(invoke(*base, "--expertise", "changing", "--method", "nuts"),
+                       "--expertise applies only to --method discrete or --method map")
     assert not (d / "x.json").exists()
 
 
@@ -172,3 +172,23 @@ def test_per_action_results_carry_the_current_episodes_beta(learner):
     assert live[-1]["beta_mean"] == pytest.approx(doc["expertise_by_episode"][-1]["mean"], rel=1e-9)
     # Early on the person is noisy, at the end expert: the live estimate falls with them.
     assert live[0]["beta_mean"] > 5 * live[-1]["beta_mean"]
+
+
+def test_map_gives_the_learning_curve_beside_the_one_beta_estimate(learner):
+    from expertise_irl.plots.results import result_figure
+
+    d, _, _ = learner
+    common = ("infer", "crossroads", "--demos", d / "demos.csv", "--model", "maxent-relative",
+              "--method", "map", "--starts", "2")
+    ok(invoke(*common, "--out", d / "map1.json"))
+    res = invoke(*common, "--expertise", "changing", "--out", d / "map2.json")
+    ok(res)
+    one, doc = (json.loads((d / n).read_text()) for n in ("map1.json", "map2.json"))
+    assert doc["beta_hat"] == one["beta_hat"] and doc["theta_hat"] == one["theta_hat"]  # one β, unchanged
+    curve = doc["expertise_by_episode"]
+    assert len(curve) == 12 and doc["trend"]["slope"] < 0 and curve[0]["mean"] > curve[-1]["mean"]
+    assert doc["changing"]["log_bayes_factor"] is None
+    assert "MAP gives no evidence" in doc["changing"]["unavailable"]
+    assert "learning curve: log β_e = log β_0 + λ·" in res.stdout
+    gids = {a.get_gid() for ax in result_figure(doc).get_axes() for a in ax.get_children()}
+    assert "curve-mean" in gids and "curve-band" not in gids

@@ -287,9 +287,13 @@ def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
     if doc.get("changing"):
         ch, curve, tr = doc["changing"], doc["expertise_by_episode"], doc["trend"]
         bf = ch["log_bayes_factor"]
-        _say(f"changing expertise: log Bayes factor {bf:.2f} against one β (P(changing) = "
-             f"{ch['p_changing']:.3g}); β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g}, "
-             f"P(β falls from the first episode to the last) = {tr['p_falls']:.2f}")
+        if bf is not None:
+            _say(f"changing expertise: log Bayes factor {bf:.2f} against one β (P(changing) = "
+                 f"{ch['p_changing']:.3g}); β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g}, "
+                 f"P(β falls from the first episode to the last) = {tr['p_falls']:.2f}")
+        else:
+            _say(f"learning curve: log β_e = log β_0 + λ·{tr['g']}, β̂_0 = {tr['beta0']:.3g}, λ̂ = "
+                 f"{tr['slope']:.3g} (β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g})")
     for w in doc["diagnostics"].get("warnings", []):
         _warn(w)
     extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""

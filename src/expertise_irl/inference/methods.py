@@ -129,9 +129,12 @@ class MAPOptions:
     starts: int = 4
     prior: str = DEFAULT_PRIOR
     model: str = DEFAULT_MODEL
+    expertise: str = "stationary"  # or "changing": also the learning curve (inference.trend)
 
     def __post_init__(self) -> None:
         _check_prior_and_model(self.prior, self.model)
+        if self.expertise not in EXPERTISE:
+            raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
 
     max_draws = 0
 
@@ -223,8 +226,16 @@ def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None
     from .task_likelihood import as_tasks
 
     as_tasks(mdp, trajs)
-    return map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), progress=progress,
-                        prior=opts.prior, model=opts.model)
+    r = map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), progress=progress,
+                     prior=opts.prior, model=opts.model)
+    if opts.expertise == "changing":  # the one-β estimate stays the result's; the curve beside it
+        from ..mdp import TabularMDP
+        from .trend import fit_trend
+
+        if not isinstance(mdp, TabularMDP):
+            raise InputError("--expertise changing with --method map takes one task")
+        return r, fit_trend(mdp, trajs, opts, seed)
+    return r
 
 
 def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = None, setup=None):
@@ -292,6 +303,18 @@ def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
 
 def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
     from .diagnostics import map_unavailable, map_warnings
+
+    if isinstance(r, tuple):  # --expertise changing: the one-β MAP and the learning curve
+        r, curve = r
+        out = _describe_map(r, opts, names)
+        out["expertise_by_episode"] = curve["expertise_by_episode"]
+        out["trend"] = {**curve["trend"], "theta_hat": curve["theta_hat"],
+                        "log_posterior": curve["diagnostics"]["log_posterior"]}
+        out["changing"] = {"log_bayes_factor": None, "p_changing": None, "epsilon_mean": None,
+                           "unavailable": "MAP gives no evidence: see trend.slope, or use --method discrete "
+                                          "for the Bayes factor"}
+        out["diagnostics"]["warnings"] += [f"learning curve: {w}" for w in curve["diagnostics"]["warnings"]]
+        return out
 
     diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
             "unavailable": map_unavailable(opts.starts)}

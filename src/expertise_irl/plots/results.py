@@ -355,7 +355,7 @@ def result_figure(
         map_w, map_h = _map_panel_size(mdp, zone_map, trajs)
         post_h = max(post_h, map_h)
     trace_h = 5.2 if trace else 0.0
-    curve = doc.get("expertise_by_episode") if method == "discrete" else None
+    curve = doc.get("expertise_by_episode")
     curve_h = 3.0 if curve else 0.0
     warnings = result_warnings(doc)
     warn_h = 0.25 + 0.16 * min(len(warnings), 4) if warnings else 0.0
@@ -401,9 +401,11 @@ def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
     """
     curve = doc["expertise_by_episode"]
     x = np.arange(1, len(curve) + 1)
-    get = {k: np.array([c[k] for c in curve], dtype=float) for k in ("mean", "median", "q05", "q95")}
-    ax.fill_between(x, get["q05"], get["q95"], step=None, color="#a5c8ed", alpha=0.7, lw=0,
-                    label="90% interval of β_e", gid="curve-band")
+    get = {k: np.array([np.nan if c[k] is None else c[k] for c in curve], dtype=float)
+           for k in ("mean", "median", "q05", "q95")}
+    if np.isfinite(get["q05"]).all():  # (a MAP curve is a point per episode: no band)
+        ax.fill_between(x, get["q05"], get["q95"], step=None, color="#a5c8ed", alpha=0.7, lw=0,
+                        label="90% interval of β_e", gid="curve-band")
     ax.plot(x, get["mean"], color="#1f4e8c", lw=1.8, marker="o", ms=3.5, label="β̂_e (mean)", gid="curve-mean")
     ax.plot(x, get["median"], ls="none", marker="_", ms=9, color="#c2255c", label="median",
             gid="curve-median")
@@ -422,6 +424,8 @@ def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
                                         if is_number(bf) else "")
     if is_number(tr.get("p_falls")):
         title += f"; P(β falls) = {tr['p_falls']:.2f}"
+    elif is_number(tr.get("slope")):
+        title += f"MAP learning curve log β_e = log β_0 + λ·{tr.get('g', 'g(e)')}, λ̂ = {tr['slope']:.3g}"
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7.5, loc="best", frameon=False)
     maps.tidy(ax)
