@@ -26,7 +26,7 @@ outside. The MAP (:func:`map_trend`) maximises log-likelihood + that log prior o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import jax
@@ -215,4 +215,238 @@ def fit_trend(mdp: TabularMDP, trajs: Trajectories, opts, seed) -> dict[str, Any
         "trend": {"beta0": r.beta0, "slope": r.slope, "g": TREND_G, "prior": TREND_PRIOR_TEXT,
                   "log_ratio_mean": r.slope},
         "diagnostics": diag,
+    }
+
+
+# ----------------------------------------------------------------------------- NUTS
+# The same posterior as map_trend's objective, sampled with NUTS through the kernel and chain
+# driver of .nuts_kernel (mirroring .shared_beta.nuts_shared_beta).
+#
+# Unconstrained coordinates x = (u [K−1], u_b, λ), dimension K + 1:
+#   θ       = StickBreaking(u)                     (numpyro's biject_to(simplex)),
+#   log β_0 = lo + (hi − lo)·σ(u_b)                 (biject_to(interval(lo, hi))),
+#   λ       = x[K]                                  (identity).
+# The density in (θ, log β_0, λ) is exp(ll + log_prior_trend) (θ's uniform density and log β_0's
+# uniform density are constants), so the potential is
+#   U(x) = −[ll(θ, log β_0, λ) + log_prior_trend(log β_0, λ)
+#            + log|det ∂θ_{1:K−1}/∂u| + log(hi − lo) + log σ(u_b) + log(1 − σ(u_b))],
+# λ's Jacobian being 1.
+__all__ += ["TrendNUTS", "fit_trend_nuts", "nuts_trend", "trend_posterior"]
+
+
+@dataclass(frozen=True)
+class TrendNUTS:
+    """Posterior draws of the learning curve (θ, log β_0, λ) from NUTS and their diagnostics.
+
+    Attributes:
+        theta: ``[C, D, K]`` draws of θ (on the simplex).
+        log_beta0: ``[C, D]`` draws of log β_0.
+        slope: ``[C, D]`` draws of λ = log(β_last/β_0).
+        betas: ``[C, D, E]`` β_e = exp(log β_0 + λ·g(e)) of each draw.
+        r_hat: ``{"slope", "log_beta0", "theta": [K]}`` split-R̂ (rank-normalised), or None when
+            the run is too short (``unavailable`` says why).
+        ess: ``{"slope", "log_beta0", "theta": [K]}`` bulk ESS, or None.
+        divergences: divergent transitions after warm-up.
+        unavailable: ``{statistic: reason}``, keys as ``"r_hat.slope"``, ``"ess_bulk.theta[k]"``.
+        mean_tree_size: leapfrog steps per draw after warm-up, averaged.
+        mean_accept_prob: mean acceptance statistic after warm-up.
+        stuck: ``{"log_beta0" | "slope" | "theta[k]": {chain: value}}`` parameters a chain never moved.
+        warnings: :func:`~.diagnostics.nuts_warnings` of the run, with β named log β_0 or λ.
+        g: ``[E]`` the grid g(e).
+    """
+
+    theta: np.ndarray
+    log_beta0: np.ndarray
+    slope: np.ndarray
+    betas: np.ndarray
+    r_hat: dict | None
+    ess: dict | None
+    divergences: int
+    unavailable: dict
+    mean_tree_size: float = float("nan")
+    mean_accept_prob: float = float("nan")
+    stuck: dict = field(default_factory=dict)
+    warnings: tuple = ()
+    g: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+class _Closed:
+    """The ``f`` that :func:`~.nuts_kernel.compile_kernel` reads (``counts``, ``zero_start``):
+    the trend's likelihood closes over its counts, so both are placeholders (no warm start)."""
+
+    counts = np.zeros(())
+
+    @staticmethod
+    def zero_start():
+        return jnp.zeros(())
+
+
+def trend_posterior(mdp: TabularMDP, trajs: Trajectories, *, tol: float = 1e-8, model: str = DEFAULT_MODEL):
+    """``(Posterior, g)``: the :class:`~.nuts_kernel.Posterior` of (θ, log β_0, λ) in the
+    unconstrained coordinates x = (u, u_b, λ) above (``constrained(x) -> (θ, [log β_0, λ])``),
+    the potential −(ll + :func:`log_prior_trend` + log Jacobian) of :func:`trend_objective`'s ``f``."""
+    import numpyro.distributions as dist
+    from numpyro.distributions.transforms import biject_to
+
+    from .nuts_kernel import Posterior
+
+    f, g = trend_objective(mdp, trajs, tol=tol, model=model)
+    K = mdp.n_features
+    lo, hi = (math.log(v) for v in LOG_UNIFORM_RANGE)
+    theta_map = biject_to(dist.constraints.simplex)
+    b_map = biject_to(dist.constraints.interval(lo, hi))
+    n_u = theta_map.inverse_shape((K,))[0]
+
+    def unpack(x):
+        u, u_b, slope = x[:n_u], x[n_u], x[n_u + 1]
+        return u, u_b, theta_map(u), b_map(u_b), slope
+
+    def constrained(x):
+        _, _, theta, b, slope = unpack(x)
+        return theta, jnp.stack([b, slope])
+
+    def potential(x, start, counts):
+        u, u_b, theta, b, slope = unpack(x)
+        ll, lp = f(theta, b, slope)
+        log_jac = theta_map.log_abs_det_jacobian(u, theta) + b_map.log_abs_det_jacobian(u_b, b)
+        return -(ll + lp + log_jac)
+
+    def log_density(theta, b_slope, counts):
+        ll, lp = f(theta, b_slope[0], b_slope[1])
+        return ll + lp
+
+    return Posterior(potential, constrained, log_density, n_u + 2), g
+
+
+def _trend_statistics(theta: np.ndarray, log_beta0: np.ndarray, slope: np.ndarray,
+                      feature_names, divergences: int) -> dict[str, Any]:
+    """:func:`~.diagnostics.chain_statistics` and :func:`~.diagnostics.nuts_warnings` for
+    (θ, log β_0) and for λ alone, their "β" renamed."""
+    from .diagnostics import chain_statistics, nuts_warnings
+
+    C = slope.shape[0]
+    names = list(feature_names)
+    a = chain_statistics(theta, log_beta0, feature_names=names)
+    s = chain_statistics(theta[..., :0], slope, feature_names=[])
+    out: dict[str, Any] = {}
+    for stat in ("r_hat", "ess_bulk"):
+        out[stat] = (None if a[stat] is None else
+                     {"slope": s[stat]["beta"], "log_beta0": a[stat]["beta"], "theta": a[stat]["theta"]})
+    unavailable: dict[str, str] = {}
+    for src, name, label in ((a, "log_beta0", "log β_0"), (s, "slope", "λ")):
+        for key, why in src["unavailable"].items():
+            unavailable[key.replace(".beta", f".{name}")] = why.replace(" β ", f" {label} ")
+    stuck = {("log_beta0" if i == 0 else f"theta[{i - 1}]"): v for i, v in a["stuck"].items()}
+    if 0 in s["stuck"]:
+        stuck["slope"] = s["stuck"][0]
+    warnings: list[str] = []
+    for src, label, div in ((a, "log β_0", divergences), (s, "λ", 0)):
+        diag = {"r_hat": src["r_hat"], "ess_bulk": src["ess_bulk"], "divergences": div, "chains": C,
+                "unavailable": src["unavailable"]}
+        for w in nuts_warnings(diag, names if src is a else [], src["stuck"]):
+            w = (w.replace("of β ", f"of {label} ").replace("in β ", f"in {label} ")
+                 .replace("in β:", f"in {label}:").replace("β = ", f"{label} = ")
+                 .replace(" β,", f" {label},").replace(" β ", f" {label} "))
+            if w not in warnings:
+                warnings.append(w)
+    out.update(unavailable=unavailable, stuck=stuck, warnings=warnings)
+    return out
+
+
+def nuts_trend(
+    mdp: TabularMDP,
+    trajs: Trajectories,
+    *,
+    num_warmup: int = 500,
+    num_samples: int = 500,
+    num_chains: int = 4,
+    seed: int = 0,
+    model: str = DEFAULT_MODEL,
+    tol: float = 1e-8,
+    progress=None,
+    dense_mass: bool = True,
+    target_accept: float = 0.8,
+) -> TrendNUTS:
+    """Sample P(θ, log β_0, λ | Ξ) ∝ exp(Σ_e ll_e(θ, β_e) + :func:`log_prior_trend`) — the density
+    :func:`map_trend` maximises — with NUTS, in the K + 1 unconstrained coordinates of
+    :func:`trend_posterior`.
+
+    The kernel, the chain driver, the Laplace starts and the chains' starts and keys are those of
+    :func:`~.shared_beta.nuts_shared_beta` (and :func:`~.nuts.nuts_posterior`); no solver warm
+    start (one solve per episode per evaluation, from zero). ``progress(done, total)`` counts
+    iterations over the chains.
+    """
+    from .nuts_kernel import compile_kernel, run_chains
+
+    for name, value, least in (("num_warmup", num_warmup, 1), ("num_samples", num_samples, 1),
+                               ("num_chains", num_chains, 1)):
+        if int(value) < least:
+            raise InputError(f"{name} must be >= {least}, got {value}")
+    if not 0 < target_accept < 1:
+        raise InputError(f"target_accept must be in (0, 1), got {target_accept}")
+    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
+    post, g = trend_posterior(mdp, trajs, tol=tol, model=model)
+    f = _Closed()
+    key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
+    x_init = np.asarray(jax.random.uniform(key_init, (num_chains, post.dim), minval=-2.0, maxval=2.0),
+                        np.float64)
+    keys = jax.random.split(key_run, num_chains)
+    total = num_warmup + num_samples
+    kernel = compile_kernel(post, f, x_init[0], keys[0], num_warmup=num_warmup, total=total,
+                            dense_mass=dense_mass, target_accept=target_accept, warm_start=False)
+    per_chain = run_chains(kernel, f.counts, x_init, keys, total, seed=int(seed), laplace_init=True,
+                           dense_mass=dense_mass, progress=progress)
+    th, bs, div, steps, acc = (np.stack([chain[k][num_warmup:] for chain in per_chain]) for k in range(5))
+    th = np.asarray(th, np.float64)
+    log_beta0, slope = np.asarray(bs[..., 0], np.float64), np.asarray(bs[..., 1], np.float64)
+    betas = np.exp(log_beta0[..., None] + slope[..., None] * np.asarray(g)[None, None, :])
+    stats = _trend_statistics(th, log_beta0, slope, mdp.feature_names, int(div.sum()))
+    return TrendNUTS(
+        theta=th, log_beta0=log_beta0, slope=slope, betas=betas, r_hat=stats["r_hat"],
+        ess=stats["ess_bulk"], divergences=int(div.sum()), unavailable=stats["unavailable"],
+        mean_tree_size=float(steps.mean()), mean_accept_prob=float(acc.mean()), stuck=stats["stuck"],
+        warnings=tuple(stats["warnings"]), g=np.asarray(g, np.float64),
+    )
+
+
+def fit_trend_nuts(mdp: TabularMDP, trajs: Trajectories, opts, seed, *, progress=None) -> dict[str, Any]:
+    """The NUTS learning curve as a result dict, for ``opts`` a NUTS options object
+    (``get_method("nuts").options_from({...})``: its ``chains``, ``warmup``, ``samples`` and
+    ``model``; its prior must be ``log-uniform``), ``seed`` an int.
+
+    Keys as :func:`fit_trend`'s, from the draws: ``theta_hat`` (posterior mean θ); ``beta_hat``,
+    the posterior mean of the curve's geometric mean over the episodes, exp(mean_e log β_e);
+    ``expertise_by_episode`` (per episode ``episode``, ``mean``, ``median``, ``q05``, ``q95`` of
+    β_e); ``trend`` (``beta0`` = posterior mean of β_0, ``slope`` = mean λ, ``slope_q05``,
+    ``slope_q95``, ``p_falls`` = the fraction of draws with λ < 0, ``g``, ``prior``,
+    ``log_ratio_mean`` = mean λ); ``diagnostics`` (``r_hat``, ``ess_bulk`` as
+    ``{"slope", "log_beta0", "theta": [K]}``, ``divergences``, ``chains``, ``draws_per_chain``,
+    ``mean_tree_size``, ``mean_accept_prob``, ``warnings``, ``unavailable``).
+    """
+    if getattr(opts, "prior", "log-uniform") != "log-uniform":
+        raise InputError(f"the learning curve's prior is fixed ({TREND_PRIOR_TEXT}); "
+                         f"got prior {opts.prior!r}, use 'log-uniform'")
+    r = nuts_trend(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples, num_chains=opts.chains,
+                   seed=int(seed), model=opts.model, progress=progress)
+    C, D, K = r.theta.shape
+    betas = r.betas.reshape(C * D, -1)
+    slope, log_beta0 = r.slope.reshape(-1), r.log_beta0.reshape(-1)
+    warnings = list(r.warnings)
+    if trajs.n_episodes == 1:
+        warnings.append("one episode: the slope is not identified (its posterior is its prior)")
+    rows = [{"episode": _label(lab), "mean": float(b.mean()), "median": float(np.median(b)),
+             "q05": float(np.quantile(b, 0.05)), "q95": float(np.quantile(b, 0.95))}
+            for lab, b in zip(trajs.episode_ids, betas.T, strict=True)]
+    return {
+        "theta_hat": r.theta.reshape(C * D, K).mean(axis=0).tolist(),
+        "beta_hat": float(np.exp(np.log(betas).mean(axis=1)).mean()),
+        "expertise_by_episode": rows,
+        "trend": {"beta0": float(np.exp(log_beta0).mean()), "slope": float(slope.mean()),
+                  "slope_q05": float(np.quantile(slope, 0.05)), "slope_q95": float(np.quantile(slope, 0.95)),
+                  "p_falls": float(np.mean(slope < 0)), "g": TREND_G, "prior": TREND_PRIOR_TEXT,
+                  "log_ratio_mean": float(slope.mean())},
+        "diagnostics": {"r_hat": r.r_hat, "ess_bulk": r.ess, "divergences": r.divergences,
+                        "chains": C, "draws_per_chain": D, "mean_tree_size": r.mean_tree_size,
+                        "mean_accept_prob": r.mean_accept_prob, "warnings": warnings,
+                        "unavailable": r.unavailable},
     }
