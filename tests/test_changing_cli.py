@@ -77,8 +77,8 @@ def test_changing_expertise_is_refused_where_it_is_not_built(learner):
     base = ("infer", "crossroads", "--demos", d / "demos.csv", "--out", d / "x.json")
     assert_input_error(invoke(*base, "--expertise", "sometimes"),
                        "--expertise must be one of stationary, changing")
-    assert_input_error(invoke(*base, "--expertise", "changing", "--method", "nuts"),
-                       "--expertise applies only to --method discrete or --method map")
+    assert_input_error(invoke(*base, "--expertise", "changing", "--method", "birl"),
+                       "--expertise applies only to --method discrete or --method map or --method nuts")
     assert not (d / "x.json").exists()
 
 
@@ -192,3 +192,18 @@ def test_map_gives_the_learning_curve_beside_the_one_beta_estimate(learner):
     assert "learning curve: log β_e = log β_0 + λ·" in res.stdout
     gids = {a.get_gid() for ax in result_figure(doc).get_axes() for a in ax.get_children()}
     assert "curve-mean" in gids and "curve-band" not in gids
+
+
+@pytest.mark.slow  # two NUTS runs (the one-β posterior and the curve's), short chains
+def test_nuts_gives_the_learning_curves_posterior_beside_the_one_beta_posterior(learner):
+    d, _, _ = learner
+    ok(invoke("infer", "crossroads", "--demos", d / "demos.csv", "--model", "maxent-relative",
+              "--method", "nuts", "--chains", "2", "--warmup", "100", "--samples", "100",
+              "--expertise", "changing", "--out", d / "nuts.json"))
+    doc = json.loads((d / "nuts.json").read_text())
+    curve, tr = doc["expertise_by_episode"], doc["trend"]
+    assert len(curve) == 12 and all(c["q05"] <= c["median"] <= c["q95"] for c in curve)
+    # β fell 40-fold (λ* = log 0.025 = −3.69): the draws say it fell.
+    assert tr["p_falls"] > 0.9 and tr["slope_q05"] < tr["slope"] < tr["slope_q95"] < 0
+    assert doc["changing"]["log_bayes_factor"] is None and doc["changing"]["unavailable"]
+    assert doc["settings"]["expertise"] == "changing"

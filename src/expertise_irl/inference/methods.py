@@ -148,9 +148,12 @@ class NUTSOptions:
     samples: int = 500  # draws per chain
     prior: str = DEFAULT_PRIOR
     model: str = DEFAULT_MODEL
+    expertise: str = "stationary"  # or "changing": also the learning curve's posterior (inference.trend)
 
     def __post_init__(self) -> None:
         _check_prior_and_model(self.prior, self.model)
+        if self.expertise not in EXPERTISE:
+            raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
 
     @property
     def max_draws(self) -> int:
@@ -243,9 +246,17 @@ def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = No
     from .task_likelihood import as_tasks
 
     as_tasks(mdp, trajs)
-    return nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
-                          num_chains=opts.chains, seed=seed, progress=progress, prior=opts.prior,
-                          model=opts.model)
+    r = nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
+                       num_chains=opts.chains, seed=seed, progress=progress, prior=opts.prior,
+                       model=opts.model)
+    if opts.expertise == "changing":  # the one-β posterior stays the result's; the curve beside it
+        from ..mdp import TabularMDP
+        from .trend import fit_trend_nuts
+
+        if not isinstance(mdp, TabularMDP):
+            raise InputError("--expertise changing with --method nuts takes one task")
+        return r, fit_trend_nuts(mdp, trajs, opts, seed)
+    return r
 
 
 # ----------------------------------------------------------------------------- descriptions
@@ -270,6 +281,16 @@ def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[s
         out["changing"] = changing_summary(cp)
         out["trend"] = trend_summary(cp)
         out["theta_hat_changing"] = (cp.theta_probabilities @ cp.hypotheses.thetas).tolist()
+    return out
+
+
+def _with_curve(out: dict[str, Any], curve: dict[str, Any], no_evidence: str) -> dict[str, Any]:
+    """A continuous method's fields with the learning curve of :mod:`.trend` beside them."""
+    out["expertise_by_episode"] = curve["expertise_by_episode"]
+    out["trend"] = {**curve["trend"], "theta_hat": curve["theta_hat"]}
+    out["changing"] = {"log_bayes_factor": None, "p_changing": None, "epsilon_mean": None,
+                       "unavailable": no_evidence}
+    out["diagnostics"]["warnings"] += [f"learning curve: {w}" for w in curve["diagnostics"]["warnings"]]
     return out
 
 
@@ -307,13 +328,9 @@ def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
     if isinstance(r, tuple):  # --expertise changing: the one-β MAP and the learning curve
         r, curve = r
         out = _describe_map(r, opts, names)
-        out["expertise_by_episode"] = curve["expertise_by_episode"]
-        out["trend"] = {**curve["trend"], "theta_hat": curve["theta_hat"],
-                        "log_posterior": curve["diagnostics"]["log_posterior"]}
-        out["changing"] = {"log_bayes_factor": None, "p_changing": None, "epsilon_mean": None,
-                           "unavailable": "MAP gives no evidence: see trend.slope, or use --method discrete "
-                                          "for the Bayes factor"}
-        out["diagnostics"]["warnings"] += [f"learning curve: {w}" for w in curve["diagnostics"]["warnings"]]
+        out = _with_curve(out, curve, "MAP gives no evidence: see trend.slope, or use --method discrete "
+                                      "for the Bayes factor")
+        out["trend"]["log_posterior"] = curve["diagnostics"]["log_posterior"]
         return out
 
     diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
@@ -328,6 +345,12 @@ def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
 
 def _describe_nuts(r, opts: NUTSOptions, names) -> dict[str, Any]:
     from .diagnostics import nuts_warnings, withhold_intervals
+
+    if isinstance(r, tuple):  # --expertise changing: the one-β posterior and the learning curve
+        r, curve = r
+        out = _describe_nuts(r, opts, names)
+        return _with_curve(out, curve, "NUTS samples no evidence for the model choice: see trend.p_falls "
+                                       "(the share of draws with λ < 0), or use --method discrete")
 
     C, D, K = r.theta.shape
     theta, beta = r.theta.reshape(-1, K), r.beta.reshape(-1)
