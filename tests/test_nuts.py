@@ -166,10 +166,10 @@ def test_a_chain_stuck_at_one_value_is_no_posterior(corridor, corridor_demos, mo
     """Chain 1 made to repeat one draw (as a chain whose every proposal is rejected does): every
     parameter gets ESS 0 and R-hat null with the reason, the document withholds the 90% intervals,
     and the first warning names the chain."""
-    from expertise_irl.inference import nuts as nuts_module
+    from expertise_irl.inference import nuts_kernel as kernel_module
     from expertise_irl.inference.methods import NUTSOptions, document
 
-    real = nuts_module.run_chains
+    real = kernel_module.run_chains
 
     def second_chain_stuck(*args, **kwargs):
         chains = real(*args, **kwargs)
@@ -177,7 +177,7 @@ def test_a_chain_stuck_at_one_value_is_no_posterior(corridor, corridor_demos, mo
         chains[1] = (np.repeat(th[-1:], len(th), axis=0), np.repeat(be[-1:], len(be)), *rest)
         return chains
 
-    monkeypatch.setattr(nuts_module, "run_chains", second_chain_stuck)
+    monkeypatch.setattr(kernel_module, "run_chains", second_chain_stuck)
     run = get_method("nuts").run(corridor, corridor_demos, NUTSOptions(chains=2, warmup=30, samples=30), 0)
     assert run.result.stuck.keys() == set(range(1 + corridor.n_features))
     doc = document(run, feature_names=corridor.feature_names, settings={}, data={})

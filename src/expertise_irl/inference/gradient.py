@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -55,6 +56,47 @@ class MAPResult:
     starts: np.ndarray
     optima: np.ndarray
     evaluations: int
+
+
+class MultiStart(NamedTuple):
+    """What :func:`multistart_lbfgsb` found: the best run, each start's recorded point and optimum
+    (the negated minimum), and the objective's evaluations in all."""
+
+    best: Any  # scipy.optimize.OptimizeResult
+    starts: np.ndarray
+    optima: np.ndarray
+    evaluations: int
+
+
+def multistart_lbfgsb(objective, draw_start, n_starts: int, bounds, *, maxiter: int = 500,
+                      progress: Callable[[int, int], None] | None = None) -> MultiStart:
+    """Minimise the JAX-traceable ``objective(x)`` by L-BFGS-B with its exact gradient from
+    ``n_starts`` starts; ``draw_start()`` returns ``(x0, recorded)``, the start and what to report of
+    it. A non-finite value counts as 1e300 with a zero gradient (the search steps back)."""
+    value_and_grad = jax.jit(jax.value_and_grad(objective))
+    evaluations = 0
+
+    def fun(x):
+        nonlocal evaluations
+        evaluations += 1
+        v, g = value_and_grad(jnp.asarray(x))
+        v = float(v)
+        if not math.isfinite(v):
+            return 1e300, np.zeros_like(x)
+        return v, np.asarray(g, dtype=np.float64)
+
+    starts, optima, best = [], [], None
+    for i in range(n_starts):
+        x0, recorded = draw_start()
+        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+                       options={"maxiter": maxiter, "ftol": 1e-12, "gtol": 1e-7})
+        starts.append(recorded)
+        optima.append(-res.fun)
+        if best is None or res.fun < best.fun:
+            best = res
+        if progress is not None:
+            progress(i + 1, n_starts)
+    return MultiStart(best, np.array(starts), np.array(optima), evaluations)
 
 
 def _unpack(x):
@@ -101,35 +143,17 @@ def map_estimate(
         ll, _ = f(theta, beta)
         return -(ll + log_prior(theta, beta))
 
-    value_and_grad = jax.jit(jax.value_and_grad(objective))
-    evaluations = 0
-
-    def fun(x):
-        nonlocal evaluations
-        evaluations += 1
-        v, g = value_and_grad(jnp.asarray(x))
-        v = float(v)
-        if not math.isfinite(v):
-            return 1e300, np.zeros_like(x)
-        return v, np.asarray(g, dtype=np.float64)
-
-    bounds = [(None, None)] * K + [(math.log(lo), math.log(hi))]
-    starts, optima, best = [], [], None
-    for i in range(n_starts):
+    def draw_start():
         theta0 = rng.dirichlet(np.ones(K))
         beta0 = math.exp(rng.uniform(math.log(lo), math.log(hi)))
         x0 = np.concatenate([np.log(np.maximum(theta0, 1e-12)), [math.log(beta0)]])
-        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds,
-                       options={"maxiter": 500, "ftol": 1e-12, "gtol": 1e-7})
-        starts.append(np.concatenate([theta0, [beta0]]))
-        optima.append(-res.fun)
-        if best is None or res.fun < best.fun:
-            best = res
-        if progress is not None:
-            progress(i + 1, n_starts)
-    theta, beta = _unpack(jnp.asarray(best.x))
-    return MAPResult(np.asarray(theta), float(beta), float(-best.fun), np.array(starts),
-                     np.array(optima), evaluations)
+        return x0, np.concatenate([theta0, [beta0]])
+
+    bounds = [(None, None)] * K + [(math.log(lo), math.log(hi))]
+    run = multistart_lbfgsb(objective, draw_start, n_starts, bounds, progress=progress)
+    theta, beta = _unpack(jnp.asarray(run.best.x))
+    return MAPResult(np.asarray(theta), float(beta), float(-run.best.fun), run.starts, run.optima,
+                     run.evaluations)
 
 
 def credible_intervals(theta: np.ndarray, beta: np.ndarray, prob: float = 0.9) -> dict:

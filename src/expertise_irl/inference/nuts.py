@@ -36,12 +36,11 @@ import jax
 import numpy as np
 
 from ..demos.trajectories import Trajectories
-from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from .diagnostics import chain_statistics
 from .gradient import credible_intervals
-from .nuts_kernel import compile_kernel, run_chains, unconstrained_posterior
+from .nuts_kernel import check_run, sample, unconstrained_posterior
 from .priors import DEFAULT_PRIOR, numpyro_priors
 from .task_likelihood import as_tasks, tasks_log_likelihood
 
@@ -133,13 +132,7 @@ def nuts_posterior(
     0.95 halved the divergences of experts' posteriors on ``corridor`` at 2-4× the time and,
     for one person, a fraction of the effective samples: docs/calibration.md).
     """
-    for name, value, least in (("num_warmup", num_warmup, 1), ("num_samples", num_samples, 1),
-                               ("num_chains", num_chains, 1)):
-        if int(value) < least:
-            raise InputError(f"{name} must be >= {least}, got {value}")
-    if not 0 < target_accept < 1:
-        raise InputError(f"target_accept must be in (0, 1), got {target_accept}")
-    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
+    num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
     f = tasks_log_likelihood(mdp, trajs, tol=tol, model=model)
     first = as_tasks(mdp, trajs)[0][0]
     named_theta, named_beta = numpyro_priors(prior, first.n_features)
@@ -149,17 +142,9 @@ def nuts_posterior(
     # one map are then the same for every data set, and JAX's persistent cache (where enabled,
     # as the command line does) serves them to later runs without compiling again.
     post = unconstrained_posterior(f, first.n_features, theta_prior, beta_prior, warm_start=warm_start)
-    key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
-    # NumPyro's default start (init_to_uniform): uniform on (-2, 2) in unconstrained coordinates.
-    x_init = np.asarray(jax.random.uniform(key_init, (num_chains, post.dim), minval=-2.0, maxval=2.0),
-                        np.float64)
-    keys = jax.random.split(key_run, num_chains)
-    total = num_warmup + num_samples
-    kernel = compile_kernel(post, f, x_init[0], keys[0], num_warmup=num_warmup, total=total,
-                            dense_mass=dense_mass, target_accept=target_accept, warm_start=warm_start)
-    per_chain = run_chains(kernel, f.counts, x_init, keys, total, seed=int(seed), laplace_init=laplace_init,
-                           dense_mass=dense_mass, progress=progress)
-    draws = [np.stack([chain[k][num_warmup:] for chain in per_chain]) for k in range(5)]
+    draws = sample(post, f, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains, seed=seed,
+                   dense_mass=dense_mass, target_accept=target_accept, warm_start=warm_start,
+                   laplace_init=laplace_init, progress=progress)
     return _summarise(*draws, post, f.counts, first.feature_names)
 
 

@@ -205,3 +205,36 @@ def run_chains(kernel: Kernel, counts, x_init: np.ndarray, keys, total: int, *, 
         except BaseException:
             stop.set()  # let the other chains finish their chunk and return
             raise
+
+
+def check_run(num_warmup, num_samples, num_chains, target_accept) -> tuple[int, int, int]:
+    """The run's lengths as ints; :class:`~expertise_irl.errors.InputError` for a length below 1 or a
+    ``target_accept`` outside (0, 1)."""
+    from ..errors import InputError
+
+    for name, value in (("num_warmup", num_warmup), ("num_samples", num_samples), ("num_chains", num_chains)):
+        if int(value) < 1:
+            raise InputError(f"{name} must be >= 1, got {value}")
+    if not 0 < target_accept < 1:
+        raise InputError(f"target_accept must be in (0, 1), got {target_accept}")
+    return int(num_warmup), int(num_samples), int(num_chains)
+
+
+def sample(post: Posterior, f, *, num_warmup: int, num_samples: int, num_chains: int, seed: int,
+           dense_mass: bool, target_accept: float, warm_start: bool = False, laplace_init: bool = True,
+           progress: Callable[[int, int], None] | None = None) -> list[np.ndarray]:
+    """Run ``num_chains`` chains on ``post`` (each its own compiled program, :func:`run_chains`)
+    from NumPyro's default start (``init_to_uniform``: uniform on (−2, 2) in unconstrained
+    coordinates), keys split from ``seed``; returns the five per-draw arrays after warm-up, each
+    ``[chains, draws, ...]``: θ, β (or the model's second block), divergences, tree sizes, accept
+    probabilities. ``f.counts`` is the data argument of the compiled programs."""
+    key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
+    x_init = np.asarray(jax.random.uniform(key_init, (num_chains, post.dim), minval=-2.0, maxval=2.0),
+                        np.float64)
+    keys = jax.random.split(key_run, num_chains)
+    total = num_warmup + num_samples
+    kernel = compile_kernel(post, f, x_init[0], keys[0], num_warmup=num_warmup, total=total,
+                            dense_mass=dense_mass, target_accept=target_accept, warm_start=warm_start)
+    per_chain = run_chains(kernel, f.counts, x_init, keys, total, seed=int(seed), laplace_init=laplace_init,
+                           dense_mass=dense_mass, progress=progress)
+    return [np.stack([chain[k][num_warmup:] for chain in per_chain]) for k in range(5)]

@@ -44,6 +44,7 @@ from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
+from .gradient import multistart_lbfgsb
 from .priors import DEFAULT_PRIOR, get_prior, log_prior_jax, numpyro_priors
 from .task_likelihood import as_tasks, pair_counts
 
@@ -181,7 +182,6 @@ def map_shared_beta(
     with one task the draws, the objective and so the optimum are ``map_estimate``'s.
     ``progress(done, n_starts)`` is called after each start.
     """
-    from scipy.optimize import minimize
 
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
@@ -197,35 +197,17 @@ def map_shared_beta(
         thetas, beta = unpack(x)
         return -g(thetas, beta)
 
-    value_and_grad = jax.jit(jax.value_and_grad(objective))
-    evaluations = 0
-
-    def fun(x):
-        nonlocal evaluations
-        evaluations += 1
-        v, grad = value_and_grad(jnp.asarray(x))
-        v = float(v)
-        if not math.isfinite(v):
-            return 1e300, np.zeros_like(x)
-        return v, np.asarray(grad, dtype=np.float64)
-
-    bounds = [(None, None)] * (T * K) + [(math.log(lo), math.log(hi))]
-    starts, optima, best = [], [], None
-    for i in range(n_starts):
+    def draw_start():
         thetas0 = np.stack([rng.dirichlet(np.ones(K)) for _ in range(T)])
         beta0 = math.exp(rng.uniform(math.log(lo), math.log(hi)))
         x0 = np.concatenate([np.log(np.maximum(thetas0, 1e-12)).ravel(), [math.log(beta0)]])
-        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds,
-                       options={"maxiter": 500 * T, "ftol": 1e-12, "gtol": 1e-7})
-        starts.append(np.concatenate([thetas0.ravel(), [beta0]]))
-        optima.append(-res.fun)
-        if best is None or res.fun < best.fun:
-            best = res
-        if progress is not None:
-            progress(i + 1, n_starts)
-    thetas, beta = unpack(jnp.asarray(best.x))
-    return SharedBetaMAP(np.asarray(thetas), float(beta), float(-best.fun), np.array(starts),
-                         np.array(optima), evaluations)
+        return x0, np.concatenate([thetas0.ravel(), [beta0]])
+
+    bounds = [(None, None)] * (T * K) + [(math.log(lo), math.log(hi))]
+    run = multistart_lbfgsb(objective, draw_start, n_starts, bounds, maxiter=500 * T, progress=progress)
+    thetas, beta = unpack(jnp.asarray(run.best.x))
+    return SharedBetaMAP(np.asarray(thetas), float(beta), float(-run.best.fun), run.starts, run.optima,
+                         run.evaluations)
 
 
 # ----------------------------------------------------------------------------- NUTS
@@ -380,29 +362,16 @@ def nuts_shared_beta(
     :func:`~.nuts.nuts_posterior`'s (see its docstring for the options); with one task the
     potential is its potential. ``progress(done, total)`` counts iterations over the chains.
     """
-    from .nuts_kernel import compile_kernel, run_chains
+    from .nuts_kernel import check_run, sample
 
-    for name, value, least in (("num_warmup", num_warmup, 1), ("num_samples", num_samples, 1),
-                               ("num_chains", num_chains, 1)):
-        if int(value) < least:
-            raise InputError(f"{name} must be >= {least}, got {value}")
-    if not 0 < target_accept < 1:
-        raise InputError(f"target_accept must be in (0, 1), got {target_accept}")
-    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
+    num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
     first = _tasks(mdps, trajs)[0][0]
     f = shared_beta_log_likelihood(mdps, trajs, tol=tol, model=model)
     theta_prior, beta_prior = numpyro_priors(prior, first.n_features)
     post = _shared_posterior(f, first.n_features, theta_prior, beta_prior)
-    key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
-    x_init = np.asarray(jax.random.uniform(key_init, (num_chains, post.dim), minval=-2.0, maxval=2.0),
-                        np.float64)
-    keys = jax.random.split(key_run, num_chains)
-    total = num_warmup + num_samples
-    kernel = compile_kernel(post, f, x_init[0], keys[0], num_warmup=num_warmup, total=total,
-                            dense_mass=dense_mass, target_accept=target_accept, warm_start=False)
-    per_chain = run_chains(kernel, f.counts, x_init, keys, total, seed=int(seed), laplace_init=True,
-                           dense_mass=dense_mass, progress=progress)
-    th, be, div, steps, acc = (np.stack([chain[k][num_warmup:] for chain in per_chain]) for k in range(5))
+    draws = sample(post, f, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
+                   seed=seed, dense_mass=dense_mass, target_accept=target_accept, progress=progress)
+    th, be, div, steps, acc = draws
     C, D = be.shape
     density = jax.jit(jax.vmap(post.log_density, in_axes=(0, 0, None)))
     log_density = np.asarray(density(th.reshape(C * D, *th.shape[2:]), be.reshape(-1), f.counts))

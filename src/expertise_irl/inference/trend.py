@@ -32,13 +32,13 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.optimize import minimize
 
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from ..planning.differentiable import make_log_likelihood
+from .gradient import multistart_lbfgsb
 from .priors import LOG_UNIFORM_RANGE
 from .task_likelihood import pair_counts
 
@@ -145,35 +145,19 @@ def map_trend(mdp: TabularMDP, trajs: Trajectories, *, n_starts: int = 4, rng: n
         ll, lp = f(jax.nn.softmax(x[:K]), x[K], x[K + 1])
         return -(ll + lp)
 
-    value_and_grad = jax.jit(jax.value_and_grad(objective))
-    evaluations = 0
-
-    def fun(x):
-        nonlocal evaluations
-        evaluations += 1
-        v, gr = value_and_grad(jnp.asarray(x))
-        v = float(v)
-        if not math.isfinite(v):
-            return 1e300, np.zeros_like(x)
-        return v, np.asarray(gr, dtype=np.float64)
-
-    bounds = [(None, None)] * K + [(lo, hi), (None, None)]
-    starts, optima, best = [], [], None
-    for _ in range(n_starts):
+    def draw_start():
         theta0 = rng.dirichlet(np.ones(K))
         b0 = rng.uniform(lo, hi)
-        x0 = np.concatenate([np.log(np.maximum(theta0, 1e-12)), [b0, 0.0]])
-        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds,
-                       options={"maxiter": 500, "ftol": 1e-12, "gtol": 1e-7})
-        starts.append(np.concatenate([theta0, [math.exp(b0), 0.0]]))
-        optima.append(-res.fun)
-        if best is None or res.fun < best.fun:
-            best = res
-    x = np.asarray(best.x)
+        return (np.concatenate([np.log(np.maximum(theta0, 1e-12)), [b0, 0.0]]),
+                np.concatenate([theta0, [math.exp(b0), 0.0]]))
+
+    bounds = [(None, None)] * K + [(lo, hi), (None, None)]
+    run = multistart_lbfgsb(objective, draw_start, n_starts, bounds)
+    x = np.asarray(run.best.x)
     theta = np.asarray(jax.nn.softmax(jnp.asarray(x[:K])))
     b0, slope = float(x[K]), float(x[K + 1])
-    return TrendMAP(theta, math.exp(b0), slope, np.exp(b0 + slope * g), float(-best.fun),
-                    np.array(optima), evaluations, np.array(starts))
+    return TrendMAP(theta, math.exp(b0), slope, np.exp(b0 + slope * g), float(-run.best.fun),
+                    run.optima, run.evaluations, run.starts)
 
 
 def _label(v) -> Any:
@@ -376,27 +360,14 @@ def nuts_trend(
     start (one solve per episode per evaluation, from zero). ``progress(done, total)`` counts
     iterations over the chains.
     """
-    from .nuts_kernel import compile_kernel, run_chains
+    from .nuts_kernel import check_run, sample
 
-    for name, value, least in (("num_warmup", num_warmup, 1), ("num_samples", num_samples, 1),
-                               ("num_chains", num_chains, 1)):
-        if int(value) < least:
-            raise InputError(f"{name} must be >= {least}, got {value}")
-    if not 0 < target_accept < 1:
-        raise InputError(f"target_accept must be in (0, 1), got {target_accept}")
-    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
+    num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
     post, g = trend_posterior(mdp, trajs, tol=tol, model=model)
     f = _Closed()
-    key_init, key_run = jax.random.split(jax.random.PRNGKey(int(seed)))
-    x_init = np.asarray(jax.random.uniform(key_init, (num_chains, post.dim), minval=-2.0, maxval=2.0),
-                        np.float64)
-    keys = jax.random.split(key_run, num_chains)
-    total = num_warmup + num_samples
-    kernel = compile_kernel(post, f, x_init[0], keys[0], num_warmup=num_warmup, total=total,
-                            dense_mass=dense_mass, target_accept=target_accept, warm_start=False)
-    per_chain = run_chains(kernel, f.counts, x_init, keys, total, seed=int(seed), laplace_init=True,
-                           dense_mass=dense_mass, progress=progress)
-    th, bs, div, steps, acc = (np.stack([chain[k][num_warmup:] for chain in per_chain]) for k in range(5))
+    draws = sample(post, f, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
+                   seed=seed, dense_mass=dense_mass, target_accept=target_accept, progress=progress)
+    th, bs, div, steps, acc = draws
     th = np.asarray(th, np.float64)
     log_beta0, slope = np.asarray(bs[..., 0], np.float64), np.asarray(bs[..., 1], np.float64)
     betas = np.exp(log_beta0[..., None] + slope[..., None] * np.asarray(g)[None, None, :])
