@@ -131,11 +131,57 @@ def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
     assert doc["trend"]["p_falls"] == pytest.approx(trend_summary(cp)["p_falls"], abs=1e-9)
     np.testing.assert_allclose([c["mean"] for c in curve], cp.mean_beta, rtol=1e-9)
     # Where the model does not apply, the study says so before doing anything.
-    for extra, msg in ((("--share", "beta"), "needs --share both"),
-                       (("--method", "map"), "needs --method discrete")):
+    for extra in (("--share", "beta"), ("--share", "beta", "--method", "map")):
         assert_input_error(invoke("study", tmp_path / "m.csv", "--out", tmp_path / "x",
-                                  "--expertise", "changing", *extra), msg)
+                                  "--expertise", "changing", *extra), "needs --share both")
     assert not (tmp_path / "x").exists()
+
+
+def test_a_map_study_fits_each_participants_curve_over_their_tasks(tmp_path):
+    """``study --method map --expertise changing``: each participant's learning curve runs over
+    their manifest rows in order (two tasks, three episodes each), is the library's MAP curve on those
+    tasks, and study.md's sign test counts the MAP slopes (no Bayes factor from a point estimate)."""
+    import csv
+
+    from expertise_irl.demos.csv_io import read_demos_csv
+    from expertise_irl.inference.trend import trend_objective
+
+    mdp = load_bundled_world("crossroads").to_mdp()
+    rng = np.random.default_rng(4)
+    people = {"L": np.exp(np.linspace(np.log(2.0), np.log(0.05), 6)), "S": np.full(6, 0.3)}
+    lines = ["participant,map,demos"]
+    for pid, betas in people.items():
+        for task in range(2):
+            parts = []
+            for e in range(3):
+                t = simulate(mdp, THETA, betas[3 * task + e], 1, rng, model="maxent-relative")
+                parts.append(Trajectories(np.full(len(t), e), t.step, t.state, t.action))
+            tr = Trajectories(*(np.concatenate([getattr(p, k) for p in parts])
+                                for k in ("episode", "step", "state", "action")))
+            write_demos_csv(tmp_path / f"{pid}-{task}.csv", tr, mdp)
+            lines.append(f"{pid},crossroads,{pid}-{task}.csv")
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    ok(invoke("study", tmp_path / "m.csv", "--out", out, "--workers", "1", "--method", "map",
+              "--model", "maxent-relative", "--expertise", "changing", "--figures", "none"))
+    rows = {r["participant"]: r for r in csv.DictReader(open(out / "study.csv", encoding="utf-8"))}
+    assert rows["L"]["changing_log_bf"] == "" and rows["L"]["trend_p_falls"] == ""
+    assert float(rows["L"]["trend_log_ratio"]) < -1.0  # β fell 40-fold: λ* = −3.69
+    doc = json.loads((out / "participants" / "L" / "result.json").read_text())
+    curve, tr = doc["expertise_by_episode"], doc["trend"]
+    assert [(c["task"], c["line"], c["task_episode"]) for c in curve] == \
+        [(0, 2, 0), (0, 2, 1), (0, 2, 2), (1, 3, 0), (1, 3, 1), (1, 3, 2)]
+    assert [c["episode"] for c in curve] == list(range(6))
+    assert curve[0]["mean"] == pytest.approx(tr["beta0"], rel=1e-12)
+    assert curve[-1]["mean"] == pytest.approx(tr["beta0"] * np.exp(tr["slope"]), rel=1e-12)
+    # The reported optimum is the six-episode objective's value at the reported curve.
+    trajs = [read_demos_csv(tmp_path / f"L-{task}.csv", mdp) for task in range(2)]
+    f, _ = trend_objective([mdp, mdp], trajs, model="maxent-relative")
+    ll, lp = f(np.asarray(tr["theta_hat"]), np.log(tr["beta0"]), tr["slope"])
+    assert tr["log_posterior"] == pytest.approx(float(ll + lp), abs=1e-6)
+    md = (out / "study.md").read_text()
+    falls = sum(float(r["trend_log_ratio"]) < 0 for r in rows.values())
+    assert f"**Do people improve?** {falls} of 2 participants are estimated to end more expert" in md
 
 
 def test_the_filtered_beta_after_each_action_is_the_model_on_the_data_so_far():
@@ -207,3 +253,19 @@ def test_nuts_gives_the_learning_curves_posterior_beside_the_one_beta_posterior(
     assert tr["p_falls"] > 0.9 and tr["slope_q05"] < tr["slope"] < tr["slope_q95"] < 0
     assert doc["changing"]["log_bayes_factor"] is None and doc["changing"]["unavailable"]
     assert doc["settings"]["expertise"] == "changing"
+
+
+def test_the_engine_option_leaves_stationary_studies_as_they_were():
+    """``UserStudyConfig.expertise`` came after studies were run without it: at its default it is
+    not part of the config (so their sweeps keep their hash and resume), and it round-trips."""
+    from expertise_irl.experiments.spec import config_dict, config_from_dict
+    from expertise_irl.userstudy.study import CONTINUOUS, UserStudyConfig
+
+    still = config_dict(UserStudyConfig(data="{}", method="map"))
+    assert "expertise" not in still and still["share"] == "both"
+    changing = config_dict(UserStudyConfig(data="{}", method="map", expertise="changing"))
+    assert changing == {**still, "expertise": "changing"}
+    assert config_from_dict(CONTINUOUS, changing).expertise == "changing"
+    assert config_from_dict(CONTINUOUS, still) == UserStudyConfig(data="{}", method="map")
+    with pytest.raises(Exception, match="--expertise must be stationary or changing"):
+        UserStudyConfig(data="{}", expertise="sometimes")

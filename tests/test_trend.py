@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax
@@ -156,3 +157,32 @@ def test_steady_person_has_small_slope(mdp, seed):
     trajs = learner(mdp, np.full(E, 0.3), seed)
     r = map_trend(mdp, trajs, n_starts=2, rng=np.random.default_rng(seed), model=MODEL)
     assert abs(r.slope) < SLOPE_TOL
+
+
+def test_several_tasks_make_one_curve_in_the_tasks_order(mdp, demo):
+    """Two tasks (two maps with the same features): their episodes are one curve, the first task's
+    in turn and then the second's, g(e) running over all six; each episode's likelihood is taken
+    on its own task's map."""
+    from expertise_irl.inference.trend import episode_tasks
+
+    other = dataclasses.replace(load_bundled_world("crossroads"), goal_reward_mode="fixed").to_mdp()
+    second = learner(other, [0.2, 0.1], seed=5, labels=[3, 1])
+    f, g = trend_objective([mdp, other], [demo, second], model=MODEL)
+    assert g.tolist() == pytest.approx([e / 5 for e in range(6)])
+    labels = [lab for _, _, lab in episode_tasks([mdp, other], [demo, second])]
+    assert labels == [{"episode": k, "task": t, "task_episode": e}
+                      for k, (t, e) in enumerate([(0, 7), (0, 2), (0, 9), (0, 4), (1, 3), (1, 1)])]
+    theta = np.array([0.3, 0.1, 0.4, 0.15, 0.05])
+    beta0, slope = 1.1, -2.0
+    ll, _ = f(jnp.asarray(theta), math.log(beta0), slope)
+    expected = 0.0
+    for e, (m, t) in enumerate([(mdp, t) for t in split_episodes(demo)]
+                               + [(other, t) for t in split_episodes(second)]):
+        expected += float(tasks_log_likelihood(m, t, model=MODEL)(theta, beta0 * math.exp(slope * e / 5))[0])
+    assert float(ll) == pytest.approx(expected, rel=1e-10)
+    opts = get_method("map").options_from({"starts": 1, "model": MODEL})
+    out = fit_trend([mdp, other], [demo, second], opts, seed=0)
+    rows = out["expertise_by_episode"]
+    assert [{k: r[k] for k in ("episode", "task", "task_episode")} for r in rows] == labels
+    with pytest.raises(InputError, match="one list of trajectories per MDP"):
+        trend_objective([mdp, other], [demo])

@@ -73,9 +73,10 @@ def study(
     ] = "both",
     expertise: Annotated[
         str,
-        typer.Option(help="stationary (one β per participant) or changing (discrete, --share both: a β "
-                     "per episode in task order; each participant's learning curve and trend, and "
-                     "in study.md a sign test of whether people improve)."),
+        typer.Option(help="stationary (one β per participant) or changing (--share both: a β per "
+                     "episode in task order; discrete: a sticky chain on the β grid with its Bayes "
+                     "factor, map/nuts: a log-linear learning curve; each participant's curve and "
+                     "trend, and in study.md a sign test of whether people improve)."),
     ] = "stationary",
     figures: Annotated[
         str,

@@ -99,9 +99,20 @@ def _arrow_type(name: str):
 
 
 # ----------------------------------------------------------------------------- configs
+#: Metadata key of a config field added after sweeps were written without it: while it keeps its
+#: default it is left out of :func:`config_dict` (and so of the config's hash), so those sweeps
+#: still resume; :func:`config_from_dict` gives it back its default.
+ADDED_FIELD = "added_field"
+
+
 def config_dict(config) -> dict[str, Any]:
-    """A config as plain JSON/TOML values (tuples become lists); :func:`config_from_dict` inverts it."""
-    return json.loads(json.dumps(dataclasses.asdict(config)))
+    """A config as plain JSON/TOML values (tuples become lists); :func:`config_from_dict` inverts it.
+    A field marked :data:`ADDED_FIELD` is left out while it has its default."""
+    out = json.loads(json.dumps(dataclasses.asdict(config)))
+    for f in dataclasses.fields(config):
+        if f.metadata.get(ADDED_FIELD) and out[f.name] == json.loads(json.dumps(f.default)):
+            del out[f.name]
+    return out
 
 
 def config_from_dict(study: Study, values: dict[str, Any]):

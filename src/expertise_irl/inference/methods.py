@@ -232,12 +232,9 @@ def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None
     r = map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), progress=progress,
                      prior=opts.prior, model=opts.model)
     if opts.expertise == "changing":  # the one-β estimate stays the result's; the curve beside it
-        from ..mdp import TabularMDP
         from .trend import fit_trend
 
-        if not isinstance(mdp, TabularMDP):
-            raise InputError("--expertise changing with --method map takes one task")
-        return r, fit_trend(mdp, trajs, opts, seed)
+        return r, fit_trend(mdp, trajs, opts, seed)  # several tasks: their episodes in turn
     return r
 
 
@@ -250,12 +247,9 @@ def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = No
                        num_chains=opts.chains, seed=seed, progress=progress, prior=opts.prior,
                        model=opts.model)
     if opts.expertise == "changing":  # the one-β posterior stays the result's; the curve beside it
-        from ..mdp import TabularMDP
         from .trend import fit_trend_nuts
 
-        if not isinstance(mdp, TabularMDP):
-            raise InputError("--expertise changing with --method nuts takes one task")
-        return r, fit_trend_nuts(mdp, trajs, opts, seed)
+        return r, fit_trend_nuts(mdp, trajs, opts, seed)  # several tasks: their episodes in turn
     return r
 
 

@@ -1,7 +1,7 @@
 """A parametric learning curve for the continuous methods: β that changes log-linearly.
 
 The model (θ shared by all episodes; episodes e = 0 … E−1 in the order given,
-``trajs.episode_ids``):
+``trajs.episode_ids``, or, for several tasks, each task's episodes in turn, in the tasks' order):
 
     log β_e = log β_0 + λ·g(e),   g(e) = e/(E−1)   (g = 0 when E = 1),
 
@@ -40,9 +40,10 @@ from ..models import DEFAULT_MODEL
 from ..planning.differentiable import make_log_likelihood
 from .gradient import multistart_lbfgsb
 from .priors import LOG_UNIFORM_RANGE
-from .task_likelihood import pair_counts
+from .task_likelihood import as_tasks, pair_counts
 
-__all__ = ["SLOPE_PRIOR_SD", "TREND_G", "TREND_PRIOR_TEXT", "TrendMAP", "episode_grid", "fit_trend",
+__all__ = ["SLOPE_PRIOR_SD", "TREND_G", "TREND_PRIOR_TEXT", "TrendMAP", "episode_grid", "episode_tasks",
+           "fit_trend",
            "log_prior_trend", "map_trend", "split_episodes", "trend_objective"]
 
 #: The prior standard deviation of the slope λ = log(β_last/β_0).
@@ -98,6 +99,23 @@ def split_episodes(trajs: Trajectories) -> list[Trajectories]:
     return out
 
 
+def episode_tasks(mdp, trajs) -> list[tuple[TabularMDP, Trajectories, dict[str, Any]]]:
+    """``[(mdp, one episode's trajectories, label)]`` in learning-curve order: one MDP and its
+    trajectories, or equal-length lists of both (:func:`~.task_likelihood.as_tasks`), each task's
+    episodes in turn. ``label`` is ``{"episode": its label}`` for one task and ``{"episode": its
+    position in the order, "task": its task's index in the lists, "task_episode": its label}`` for
+    several."""
+    tasks = as_tasks(mdp, trajs)
+    several = not isinstance(mdp, TabularMDP)
+    out = []
+    for t, (m, tr) in enumerate(tasks):
+        for lab, ep in zip(tr.episode_ids, split_episodes(tr), strict=True):
+            label = ({"episode": len(out), "task": t, "task_episode": _label(lab)} if several
+                     else {"episode": _label(lab)})
+            out.append((m, ep, label))
+    return out
+
+
 def log_prior_trend(log_beta0, slope):
     """log p(θ, log β_0, λ) up to a constant (JAX-traceable): −λ²/(2·2²) when log β_0 is in
     [log 1e-3, log 1e2], −∞ otherwise (θ's uniform density is a constant)."""
@@ -106,16 +124,14 @@ def log_prior_trend(log_beta0, slope):
     return jnp.where(inside, -0.5 * (slope / SLOPE_PRIOR_SD) ** 2, -jnp.inf)
 
 
-def trend_objective(mdp: TabularMDP, trajs: Trajectories, *, tol: float = 1e-10,
-                    model: str = DEFAULT_MODEL):
+def trend_objective(mdp, trajs, *, tol: float = 1e-10, model: str = DEFAULT_MODEL):
     """``(f, g)``: ``f(theta, log_beta0, slope) -> (log-likelihood, log prior)``, JAX-traceable,
-    the log-likelihood Σ_e ll_e(θ, β_e); ``g`` the ``[E]`` grid g(e)."""
-    if not isinstance(mdp, TabularMDP) or not isinstance(trajs, Trajectories):
-        raise InputError("the learning curve takes one MDP and its trajectories")
-    if len(trajs) == 0:
+    the log-likelihood Σ_e ll_e(θ, β_e) over the episodes of :func:`episode_tasks` (one MDP and
+    its trajectories, or lists of both); ``g`` the ``[E]`` grid g(e)."""
+    episodes = episode_tasks(mdp, trajs)
+    if not episodes or sum(len(t) for _, t, _ in episodes) == 0:
         raise InputError("need at least one demonstrated step")
-    parts = [make_log_likelihood(mdp, pair_counts(mdp, t), tol=tol, model=model)
-             for t in split_episodes(trajs)]
+    parts = [make_log_likelihood(m, pair_counts(m, t), tol=tol, model=model) for m, t, _ in episodes]
     g = episode_grid(len(parts))
 
     def f(theta, log_beta0, slope):
@@ -127,18 +143,19 @@ def trend_objective(mdp: TabularMDP, trajs: Trajectories, *, tol: float = 1e-10,
     return f, g
 
 
-def map_trend(mdp: TabularMDP, trajs: Trajectories, *, n_starts: int = 4, rng: np.random.Generator,
+def map_trend(mdp, trajs, *, n_starts: int = 4, rng: np.random.Generator,
               model: str = DEFAULT_MODEL, tol: float = 1e-10) -> TrendMAP:
     """Maximise Σ_e ll_e(θ, β_e) + log p(θ, log β_0, λ) by L-BFGS-B from ``n_starts`` starts.
 
     Coordinates x = (z, log β_0, λ), θ = softmax(z); log β_0 is bounded to the prior's range,
     λ is free. Starts: θ uniform on the simplex, log β_0 uniform on the prior's range, λ = 0
-    (no change; the slope's likelihood is smooth and its prior unimodal).
+    (no change; the slope's likelihood is smooth and its prior unimodal). ``mdp`` and ``trajs``
+    may be equal-length lists of tasks (:func:`episode_tasks`).
     """
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
     f, g = trend_objective(mdp, trajs, tol=tol, model=model)
-    K = mdp.n_features
+    K = as_tasks(mdp, trajs)[0][0].n_features
     lo, hi = (math.log(v) for v in LOG_UNIFORM_RANGE)
 
     def objective(x):
@@ -164,17 +181,18 @@ def _label(v) -> Any:
     return v.item() if isinstance(v, np.generic) else v
 
 
-def fit_trend(mdp: TabularMDP, trajs: Trajectories, opts, seed) -> dict[str, Any]:
+def fit_trend(mdp, trajs, opts, seed) -> dict[str, Any]:
     """The MAP learning curve as a result dict, for ``opts`` a MAP options object
     (``get_method("map").options_from({...})``: its ``starts`` and ``model``; its prior must be
     ``log-uniform``, whose β part is the prior of β_0).
 
-    Keys: ``theta_hat``; ``beta_hat``, the curve's geometric mean over the episodes,
-    exp(mean_e log β̂_e) (= β̂_0·e^{λ̂/2}, the curve at g = 1/2, when E ≥ 2); ``expertise_by_episode``
-    (one row per episode: ``episode`` label, ``mean`` = ``median`` = β̂_e, ``q05`` = ``q95`` = None:
-    a point estimate has no band); ``trend`` (``beta0``, ``slope``, ``g``, ``prior``,
-    ``log_ratio_mean`` = λ̂); ``diagnostics`` (``warnings``, ``optima``, ``starts``,
-    ``evaluations``, ``log_posterior``).
+    ``mdp`` and ``trajs`` may be equal-length lists of tasks, their episodes one curve in the tasks'
+    order (:func:`episode_tasks`). Keys: ``theta_hat``; ``beta_hat``, the curve's geometric mean
+    over the episodes, exp(mean_e log β̂_e) (= β̂_0·e^{λ̂/2}, the curve at g = 1/2, when E ≥ 2);
+    ``expertise_by_episode`` (one row per episode: its :func:`episode_tasks` label, ``mean`` =
+    ``median`` = β̂_e, ``q05`` = ``q95`` = None: a point estimate has no band); ``trend``
+    (``beta0``, ``slope``, ``g``, ``prior``, ``log_ratio_mean`` = λ̂); ``diagnostics``
+    (``warnings``, ``optima``, ``starts``, ``evaluations``, ``log_posterior``).
     """
     from .diagnostics import map_warnings
 
@@ -187,11 +205,12 @@ def fit_trend(mdp: TabularMDP, trajs: Trajectories, opts, seed) -> dict[str, Any
                             "evaluations": r.evaluations, "log_posterior": r.log_posterior}
     # Start agreement, and β̂_0 on the edge of its prior's range.
     warnings = [w.replace("β̂ =", "β̂_0 =") for w in map_warnings(diag, r.beta0, LOG_UNIFORM_RANGE)]
-    if trajs.n_episodes == 1:
+    labels = [lab for _, _, lab in episode_tasks(mdp, trajs)]
+    if len(labels) == 1:
         warnings.append("one episode: the slope is not identified (λ̂ = 0 is the prior's mode)")
     diag["warnings"] = warnings
-    rows = [{"episode": _label(lab), "mean": float(b), "median": float(b), "q05": None, "q95": None}
-            for lab, b in zip(trajs.episode_ids, r.betas, strict=True)]
+    rows = [{**lab, "mean": float(b), "median": float(b), "q05": None, "q95": None}
+            for lab, b in zip(labels, r.betas, strict=True)]
     return {
         "theta_hat": r.theta.tolist(),
         "beta_hat": beta_hat,
@@ -265,7 +284,7 @@ class _Closed:
         return jnp.zeros(())
 
 
-def trend_posterior(mdp: TabularMDP, trajs: Trajectories, *, tol: float = 1e-8, model: str = DEFAULT_MODEL):
+def trend_posterior(mdp, trajs, *, tol: float = 1e-8, model: str = DEFAULT_MODEL):
     """``(Posterior, g)``: the :class:`~.nuts_kernel.Posterior` of (θ, log β_0, λ) in the
     unconstrained coordinates x = (u, u_b, λ) above (``constrained(x) -> (θ, [log β_0, λ])``),
     the potential −(ll + :func:`log_prior_trend` + log Jacobian) of :func:`trend_objective`'s ``f``."""
@@ -275,7 +294,7 @@ def trend_posterior(mdp: TabularMDP, trajs: Trajectories, *, tol: float = 1e-8, 
     from .nuts_kernel import Posterior
 
     f, g = trend_objective(mdp, trajs, tol=tol, model=model)
-    K = mdp.n_features
+    K = as_tasks(mdp, trajs)[0][0].n_features
     lo, hi = (math.log(v) for v in LOG_UNIFORM_RANGE)
     theta_map = biject_to(dist.constraints.simplex)
     b_map = biject_to(dist.constraints.interval(lo, hi))
@@ -338,8 +357,8 @@ def _trend_statistics(theta: np.ndarray, log_beta0: np.ndarray, slope: np.ndarra
 
 
 def nuts_trend(
-    mdp: TabularMDP,
-    trajs: Trajectories,
+    mdp,
+    trajs,
     *,
     num_warmup: int = 500,
     num_samples: int = 500,
@@ -371,7 +390,8 @@ def nuts_trend(
     th = np.asarray(th, np.float64)
     log_beta0, slope = np.asarray(bs[..., 0], np.float64), np.asarray(bs[..., 1], np.float64)
     betas = np.exp(log_beta0[..., None] + slope[..., None] * np.asarray(g)[None, None, :])
-    stats = _trend_statistics(th, log_beta0, slope, mdp.feature_names, int(div.sum()))
+    names = as_tasks(mdp, trajs)[0][0].feature_names
+    stats = _trend_statistics(th, log_beta0, slope, names, int(div.sum()))
     return TrendNUTS(
         theta=th, log_beta0=log_beta0, slope=slope, betas=betas, r_hat=stats["r_hat"],
         ess=stats["ess_bulk"], divergences=int(div.sum()), unavailable=stats["unavailable"],
@@ -380,7 +400,7 @@ def nuts_trend(
     )
 
 
-def fit_trend_nuts(mdp: TabularMDP, trajs: Trajectories, opts, seed, *, progress=None) -> dict[str, Any]:
+def fit_trend_nuts(mdp, trajs, opts, seed, *, progress=None) -> dict[str, Any]:
     """The NUTS learning curve as a result dict, for ``opts`` a NUTS options object
     (``get_method("nuts").options_from({...})``: its ``chains``, ``warmup``, ``samples`` and
     ``model``; its prior must be ``log-uniform``), ``seed`` an int.
@@ -389,7 +409,7 @@ def fit_trend_nuts(mdp: TabularMDP, trajs: Trajectories, opts, seed, *, progress
     the posterior mean of the curve's geometric mean over the episodes, exp(mean_e log β_e);
     ``expertise_by_episode`` (per episode ``episode``, ``mean``, ``median``, ``q05``, ``q95`` of
     β_e); ``trend`` (``beta0`` = posterior mean of β_0, ``slope`` = mean λ, ``slope_q05``,
-    ``slope_q95``, ``p_falls`` = the fraction of draws with λ < 0, ``g``, ``prior``,
+    ``slope_q95``, ``p_falls`` = the fraction of draws with λ < 0, ``p_rises`` with λ > 0, ``g``, ``prior``,
     ``log_ratio_mean`` = mean λ); ``diagnostics`` (``r_hat``, ``ess_bulk`` as
     ``{"slope", "log_beta0", "theta": [K]}``, ``divergences``, ``chains``, ``draws_per_chain``,
     ``mean_tree_size``, ``mean_accept_prob``, ``warnings``, ``unavailable``).
@@ -403,18 +423,20 @@ def fit_trend_nuts(mdp: TabularMDP, trajs: Trajectories, opts, seed, *, progress
     betas = r.betas.reshape(C * D, -1)
     slope, log_beta0 = r.slope.reshape(-1), r.log_beta0.reshape(-1)
     warnings = list(r.warnings)
-    if trajs.n_episodes == 1:
+    labels = [lab for _, _, lab in episode_tasks(mdp, trajs)]
+    if len(labels) == 1:
         warnings.append("one episode: the slope is not identified (its posterior is its prior)")
-    rows = [{"episode": _label(lab), "mean": float(b.mean()), "median": float(np.median(b)),
+    rows = [{**lab, "mean": float(b.mean()), "median": float(np.median(b)),
              "q05": float(np.quantile(b, 0.05)), "q95": float(np.quantile(b, 0.95))}
-            for lab, b in zip(trajs.episode_ids, betas.T, strict=True)]
+            for lab, b in zip(labels, betas.T, strict=True)]
     return {
         "theta_hat": r.theta.reshape(C * D, K).mean(axis=0).tolist(),
         "beta_hat": float(np.exp(np.log(betas).mean(axis=1)).mean()),
         "expertise_by_episode": rows,
         "trend": {"beta0": float(np.exp(log_beta0).mean()), "slope": float(slope.mean()),
                   "slope_q05": float(np.quantile(slope, 0.05)), "slope_q95": float(np.quantile(slope, 0.95)),
-                  "p_falls": float(np.mean(slope < 0)), "g": TREND_G, "prior": TREND_PRIOR_TEXT,
+                  "p_falls": float(np.mean(slope < 0)), "p_rises": float(np.mean(slope > 0)),
+                  "g": TREND_G, "prior": TREND_PRIOR_TEXT,
                   "log_ratio_mean": float(slope.mean())},
         "diagnostics": {"r_hat": r.r_hat, "ess_bulk": r.ess, "divergences": r.divergences,
                         "chains": C, "draws_per_chain": D, "mean_tree_size": r.mean_tree_size,

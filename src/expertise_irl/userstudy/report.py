@@ -126,29 +126,38 @@ CHANGING_COLUMNS = ("changing_log_bf", "p_changing", "trend_p_falls", "trend_p_r
 
 def changing_markdown(rows: Sequence[dict[str, Any]]) -> str:
     """``--expertise changing``: do people improve over the study? The share of participants with
-    P(β falls from their first episode to their last) > 0.5, with a two-sided sign test against
-    1/2, then each participant's Bayes factor and trend."""
+    P(β falls from their first episode to their last) > 0.5 (with ``--method map``, whose curve is a
+    point estimate: with λ̂ < 0), with a two-sided sign test against 1/2, then each participant's
+    Bayes factor (discrete only) and trend."""
     from scipy.stats import binomtest
 
-    usable = [r for r in rows if _has(r, "trend_p_falls")]
-    falls = sum(r["trend_p_falls"] > 0.5 for r in usable)
-    rises = sum(r["trend_p_rises"] > 0.5 for r in usable)
+    by_p = [r for r in rows if _has(r, "trend_p_falls")]
+    usable = by_p or [r for r in rows if _has(r, "trend_log_ratio")]
+    if by_p:
+        falls = sum(r["trend_p_falls"] > 0.5 for r in usable)
+        rises = sum(r["trend_p_rises"] > 0.5 for r in usable)
+        rule, rule_up = "P(β falls) > 0.5", "more likely than not to end less expert"
+    else:
+        falls = sum(r["trend_log_ratio"] < 0 for r in usable)
+        rises = sum(r["trend_log_ratio"] > 0 for r in usable)
+        rule, rule_up = "MAP λ̂ < 0, a point estimate", "estimated to end less expert (λ̂ > 0)"
     n = len(usable)
     lines = ["## Expertise over the study (--expertise changing)", ""]
     if n:
         p = binomtest(falls, n, 0.5).pvalue
-        lines += [f"**Do people improve?** {falls} of {n} participants are more likely than not to "
-                  f"end more expert than they began (P(β falls) > 0.5); a two-sided sign test against "
-                  f"1/2 gives p = {p:.3g}. {rises} are more likely than not to end less expert; the others "
-                  "most likely keep their expertise.", ""]
+        lines += [f"**Do people improve?** {falls} of {n} participants are "
+                  f"{'more likely than not' if by_p else 'estimated'} to end more expert than they began "
+                  f"({rule}); a two-sided sign test against 1/2 gives p = {p:.3g}. {rises} are {rule_up}; "
+                  "the others most likely keep their expertise.", ""]
     lines += ["Per participant, episodes in task order: the log Bayes factor for a β that changes "
-              "against one β (> 0 favours change), P(changing), P(β falls from the first episode to "
-              "the last) and E[log β_last − log β_first] (negative: improves; −0.69 is halving).", "",
+              "against one β (> 0 favours change; --method discrete only), P(changing), P(β falls from "
+              "the first episode to the last) and E[log β_last − log β_first] (negative: improves; −0.69 "
+              "is halving; with --method map the MAP λ̂).", "",
               "| participant | log BF | P(changing) | P(β falls) | E[log β_last/β_first] |",
               "|---|---|---|---|---|"]
     for r in usable:
-        lines.append(f"| {r['participant']} | {r['changing_log_bf']:.2f} | {_num(r['p_changing'])} | "
-                     f"{r['trend_p_falls']:.2f} | {r['trend_log_ratio']:+.2f} |")
+        lines.append(f"| {r['participant']} | {_num(r['changing_log_bf'], 3)} | {_num(r['p_changing'])} | "
+                     f"{_num(r['trend_p_falls'], 2)} | {r['trend_log_ratio']:+.2f} |")
     return "\n".join(lines) + "\n\n"
 
 

@@ -338,6 +338,8 @@ def run_study(
         model=opts.model,
         method=opts.method,
         share=opts.share,
+        # the discrete set's curve comes from the per-episode log-likelihoods, not from the engine
+        expertise="stationary" if opts.method == "discrete" else opts.expertise,
     )
     study = DISCRETE if opts.method == "discrete" else CONTINUOUS
     t_inf = time.perf_counter()
@@ -384,13 +386,11 @@ def run_study(
 
 
 def check_expertise(opts: StudyOptions) -> None:
-    """``--expertise changing`` needs the discrete set and one θ for all of a person's tasks."""
+    """``--expertise changing`` needs one θ for all of a person's tasks."""
     from ..inference.methods import EXPERTISE
 
     if opts.expertise not in EXPERTISE:
         raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {opts.expertise!r}")
-    if opts.expertise == "changing" and opts.method != "discrete":
-        raise InputError(f"--expertise changing needs --method discrete (got --method {opts.method})")
     if opts.expertise == "changing" and opts.share != "both":
         raise InputError("--expertise changing needs --share both (its θ is shared by every episode)")
 
@@ -597,6 +597,9 @@ def _continuous_estimates(manifest: Manifest, rows, share: str) -> dict[str, dic
         res["share"] = share
         res["heldout"] = {"split": "none", "units": 0, "actions": 0, "log_likelihood": None,
                           "per_action": None, "unavailable": CONTINUOUS_HELDOUT}
+        for row in res.get("expertise_by_episode") or []:  # --expertise changing: the manifest's names
+            t = mine[row["task"]]
+            row.update(task=t.index, line=t.line)
         if share == "beta":
             task_theta = [list(t) for t in res["theta_hat"]]
             res["theta_hat_by_task"], res["theta_hat"] = task_theta, None
@@ -802,9 +805,9 @@ def changing_columns(doc) -> dict[str, float]:
     """``--expertise changing``'s columns of ``study.csv`` (absent otherwise)."""
     if "changing" not in doc:
         return {}
-    ch, tr = doc["changing"], doc["trend"]
+    ch, tr = doc["changing"], doc["trend"]  # map: a point estimate, no probabilities
     return {"changing_log_bf": _f(ch["log_bayes_factor"]), "p_changing": _f(ch["p_changing"]),
-            "trend_p_falls": _f(tr["p_falls"]), "trend_p_rises": _f(tr["p_rises"]),
+            "trend_p_falls": _f(tr.get("p_falls")), "trend_p_rises": _f(tr.get("p_rises")),
             "trend_log_ratio": _f(tr["log_ratio_mean"])}
 
 

@@ -23,14 +23,14 @@ import base64
 import json
 import time
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..experiments.spec import Column, Study, TaskSpec
+from ..experiments.spec import ADDED_FIELD, Column, Study, TaskSpec
 
 METHODS = ("discrete", "map", "nuts")
 #: What a participant's tasks share: ``both`` one (θ, β); ``beta`` one β, a θ per task.
@@ -52,12 +52,17 @@ class UserStudyConfig:
     warmup: int = 500
     samples: int = 500
     share: str = "both"
+    # map/nuts: "changing" also fits the learning curve (inference.trend) over each participant's
+    # episodes in task order (the discrete set's curve needs no engine option: see userstudy.run)
+    expertise: str = field(default="stationary", metadata={ADDED_FIELD: True})
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise InputError(f"--method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.share not in SHARES:
             raise InputError(f"--share must be one of {', '.join(SHARES)}, got {self.share!r}")
+        if self.expertise not in ("stationary", "changing"):
+            raise InputError(f"--expertise must be stationary or changing, got {self.expertise!r}")
 
 
 @lru_cache(maxsize=4)
@@ -188,7 +193,8 @@ def run_continuous(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict,
         )
     method = get_method(cfg.method)
     opts = method.options_from(dict(starts=cfg.starts, chains=cfg.chains, warmup=cfg.warmup,
-                                    samples=cfg.samples, prior=cfg.prior, model=cfg.model))
+                                    samples=cfg.samples, prior=cfg.prior, model=cfg.model,
+                                    expertise=cfg.expertise))
     seed = participant_seed(pid) + int(seed)
     if cfg.share == "beta":  # one β, a θ per task
         from ..inference.shared_beta import fit_shared_beta
