@@ -1,0 +1,543 @@
+"""A population model over a study's participants, exact over the discrete set.
+
+Each participant i has one hypothesis h_i = (θ_j, β_k) of the study's set (the same set for
+everyone, θ-major and β fastest), and the grid log-likelihood ``ℓ_i[j, k] = log P(Ξ_i | θ_j, β_k)``
+of all their data (the solves the study already shares give it). Instead of a fixed uniform
+prior, the prior over the grid is a population with hyperparameters ψ = (μ_g, σ_g for each group
+g, α, m):
+
+- **expertise**: ``P(β_k | μ, σ) ∝ exp(−(log β_k − μ)² / 2σ²)``, the normal density of log β at the
+  grid's cells, normalised over the cells (μ and σ in natural-log units; participant i uses the
+  (μ, σ) of their group, one group unless ``--group-by``);
+- **preferences**: ``P(θ_j | α, m) ∝ Π_c θ̃_jc^(α·m_c − 1)`` over the θ's the participant allows
+  (a feature that is 0 on all their tasks is kept at 0, as in the independent posterior), the
+  Dirichlet(α·m) density. The set's θ's lie on the simplex but many on its boundary, where that
+  density is 0 or ∞, so it is evaluated at ``θ̃ = (1 − ε)·θ + ε/K`` (:data:`THETA_SHRINK` ε =
+  0.1): each point moved a tenth of the way to the simplex's centre. Then α·m = 1 gives the
+  uniform prior exactly, and as α → ∞ with m = θ̃_j the prior puts all its mass on θ_j.
+
+The prior factorises, so a participant's marginal likelihood is exact and cheap:
+
+    log p(Ξ_i | ψ) = log Σ_j P(θ_j | α, m) Σ_k P(β_k | μ_g(i), σ_g(i)) exp ℓ_i[j, k],
+
+a smooth function of ψ whose cost is N·|Θ|·|B|, independent of the map once the solves are
+done. On it:
+
+- :func:`type2_ml`: type-II maximum likelihood, ψ̂ = argmax Σ_i log p(Ξ_i | ψ), by L-BFGS-B on
+  the exact gradient (JAX) in (μ, log σ, log α, z), m = softmax(z), from several starts;
+- :func:`sample_population`: NUTS over ψ with every participant marginalised exactly, through the
+  kernel and chain driver of :mod:`.nuts_kernel`, under the hyperprior :data:`HYPERPRIOR_TEXT`
+  (:class:`Hyperprior`);
+- :func:`shrunk_posteriors`: each participant's posterior over the grid under the population,
+  ``P(h | Ξ_i, Ξ) = E_ψ[P(h | Ξ_i, ψ)]`` over the hyperparameter draws (or at ψ̂);
+- :func:`heldout_comparison`: each participant's held-out units predicted three ways, in nats
+  per action: independently (uniform prior, the study's held-out check), under the population
+  fitted **without that participant** (type-II ML on the others), and fully pooled (one
+  posterior shared by everyone, from the others' data and the participant's training data).
+
+Limits (:mod:`tests.test_population` checks both): with σ → ∞ and α·m = 1 the prior is uniform
+and each participant's posterior is the independent one; with σ → 0 and α → ∞ the prior sits on
+one cell (θ_j*, β_k*) and the marginal likelihood is that of full pooling, Σ_i ℓ_i[j*, k*].
+"""
+
+from __future__ import annotations
+
+import math
+import warnings as _warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.special import logsumexp as jlse
+from scipy.special import logsumexp
+
+from ..errors import InputError
+from ..hypotheses import HypothesisSet
+
+__all__ = ["HYPERPRIOR_TEXT", "THETA_SHRINK", "Hyperparameters", "Hyperprior", "PopulationData",
+           "PopulationFit", "PopulationPosterior", "heldout_comparison", "log_marginals",
+           "population_data", "population_log_prior", "sample_population", "shrunk_posteriors",
+           "type2_ml"]
+
+#: ε of θ̃ = (1 − ε)·θ + ε/K, where the Dirichlet density of the θ set is evaluated.
+THETA_SHRINK = 0.1
+#: Type-II ML's box: σ and α (their logs are bounded), μ within this many nats of the grid.
+SIGMA_RANGE = (1e-3, 20.0)
+ALPHA_RANGE = (1e-2, 1e5)
+MU_MARGIN = 3.0
+
+
+# ----------------------------------------------------------------------------- data
+@dataclass(frozen=True)
+class PopulationData:
+    """A study's participants as the population model sees them.
+
+    Attributes:
+        hypotheses: the set, shared by every participant.
+        log_lik: ``[N, n_theta, n_beta]`` ℓ_i (all of participant i's data).
+        allowed: ``[N, n_theta]`` the θ's each participant's prior allows.
+        groups: ``[N]`` each participant's group index.
+        group_names: the groups' names (``("all",)`` for one group).
+        participants: the participants' names.
+    """
+
+    hypotheses: HypothesisSet
+    log_lik: np.ndarray
+    allowed: np.ndarray
+    groups: np.ndarray
+    group_names: tuple[str, ...]
+    participants: tuple[str, ...]
+
+    @property
+    def n(self) -> int:
+        return self.log_lik.shape[0]
+
+    @property
+    def n_groups(self) -> int:
+        return len(self.group_names)
+
+    def arrays(self) -> tuple[jnp.ndarray, ...]:
+        """The JAX arguments of :func:`log_marginals`: ℓ, log allowed, one-hot groups, log β, log θ̃."""
+        hyp = self.hypotheses
+        with np.errstate(divide="ignore"):
+            log_allowed = np.where(self.allowed, 0.0, -np.inf)
+        one_hot = np.eye(self.n_groups)[self.groups]
+        K = hyp.thetas.shape[1]
+        log_tt = np.log((1 - THETA_SHRINK) * hyp.thetas + THETA_SHRINK / K)
+        return (jnp.asarray(self.log_lik), jnp.asarray(log_allowed), jnp.asarray(one_hot),
+                jnp.asarray(np.log(hyp.betas)), jnp.asarray(log_tt))
+
+
+def population_data(log_lik: Sequence[np.ndarray], hyp: HypothesisSet, *,
+                    allowed: Sequence[np.ndarray] | None = None, groups: Sequence[str] | None = None,
+                    participants: Sequence[str] | None = None) -> PopulationData:
+    """:class:`PopulationData` from each participant's ``[H]`` grid log-likelihood (θ-major), the
+    θ's each allows (``[n_theta]`` bool; all by default) and each one's group name (groups in order
+    of first appearance). A participant whom every allowed hypothesis gives probability 0 has no
+    place in the population: :class:`InputError` names them."""
+    ll = np.asarray([np.asarray(x, dtype=np.float64) for x in log_lik])
+    N = ll.shape[0]
+    if N == 0:
+        raise InputError("the population model needs at least one participant")
+    if ll.ndim != 2 or ll.shape[1] != len(hyp):
+        raise InputError(f"each participant's log-likelihood must have one value per hypothesis "
+                         f"({len(hyp)}), got shape {ll.shape}")
+    names = tuple(str(p) for p in (participants if participants is not None else range(N)))
+    ok = np.ones((N, hyp.n_theta), dtype=bool) if allowed is None else np.asarray(allowed, dtype=bool)
+    if ok.shape != (N, hyp.n_theta):
+        raise InputError(f"allowed must be [participants, n_theta] = [{N}, {hyp.n_theta}], got {ok.shape}")
+    grid = ll.reshape(N, hyp.n_theta, hyp.n_beta)
+    for i in range(N):
+        if np.isnan(grid[i]).any():
+            raise InputError(f"participant {names[i]}: a log-likelihood is NaN")
+        if not np.isfinite(grid[i][ok[i]]).any():
+            raise InputError(f"participant {names[i]}: every hypothesis of the set gives their data "
+                             "probability 0, so the population model cannot include them")
+    if groups is None:
+        gnames, gidx = ("all",), np.zeros(N, dtype=int)
+    else:
+        groups = [str(g) for g in groups]
+        if len(groups) != N:
+            raise InputError(f"need one group per participant, got {len(groups)} for {N}")
+        gnames = tuple(dict.fromkeys(groups))
+        gidx = np.array([gnames.index(g) for g in groups], dtype=int)
+    return PopulationData(hyp, grid, ok, gidx, gnames, names)
+
+
+# ----------------------------------------------------------------------------- the model
+class Hyperparameters:
+    """ψ: ``mu [G]``, ``sigma [G]`` (log β's mean and sd per group), ``alpha``, ``m [K]``."""
+
+    def __init__(self, mu, sigma, alpha, m):
+        self.mu = np.atleast_1d(np.asarray(mu, np.float64))
+        self.sigma = np.atleast_1d(np.asarray(sigma, np.float64))
+        self.alpha, self.m = float(alpha), np.asarray(m, np.float64)
+
+    def to_dict(self, group_names: Sequence[str] | None = None) -> dict[str, Any]:
+        names = list(group_names) if group_names is not None else [str(g) for g in range(len(self.mu))]
+        return {"mu": dict(zip(names, self.mu.tolist(), strict=True)),
+                "sigma": dict(zip(names, self.sigma.tolist(), strict=True)),
+                "alpha": self.alpha, "m": self.m.tolist()}
+
+
+def _log_priors(arrays, mu, sigma, alpha, m):
+    """``([N, n_beta], [N, n_theta])``: each participant's log P(β_k) and log P(θ_j) (normalised)."""
+    _, log_allowed, one_hot, log_b, log_tt = arrays
+    lpb = -0.5 * ((log_b[None, :] - mu[:, None]) / sigma[:, None]) ** 2  # [G, nB]
+    lpb = lpb - jlse(lpb, axis=1, keepdims=True)
+    lpt = log_tt @ (alpha * m - 1.0)  # [nT]
+    lpt = lpt[None, :] + log_allowed  # [N, nT]
+    lpt = lpt - jlse(lpt, axis=1, keepdims=True)
+    return one_hot @ lpb, lpt
+
+
+def _log_marginals(arrays, mu, sigma, alpha, m):
+    """``[N]`` log p(Ξ_i | ψ) (JAX-traceable)."""
+    ll = arrays[0]
+    lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
+    inner = jlse(ll + lpb[:, None, :], axis=2)  # [N, nT]: Σ_k P(β_k) P(Ξ_i | θ_j, β_k)
+    return jlse(inner + lpt, axis=1)
+
+
+def log_marginals(data: PopulationData, psi: Hyperparameters) -> np.ndarray:
+    """``[N]`` each participant's log marginal likelihood log p(Ξ_i | ψ)."""
+    _check_psi(data, psi)
+    return np.asarray(_log_marginals(data.arrays(), jnp.asarray(psi.mu), jnp.asarray(psi.sigma),
+                                     psi.alpha, jnp.asarray(psi.m)))
+
+
+def population_log_prior(data: PopulationData, psi: Hyperparameters) -> np.ndarray:
+    """``[N, n_theta, n_beta]`` each participant's log prior over the grid under ψ."""
+    _check_psi(data, psi)
+    lpb, lpt = _log_priors(data.arrays(), jnp.asarray(psi.mu), jnp.asarray(psi.sigma), psi.alpha,
+                           jnp.asarray(psi.m))
+    return np.asarray(lpt[:, :, None] + lpb[:, None, :])
+
+
+def _check_psi(data: PopulationData, psi: Hyperparameters) -> None:
+    K = data.hypotheses.thetas.shape[1]
+    if psi.mu.shape != (data.n_groups,) or psi.sigma.shape != (data.n_groups,):
+        raise InputError(f"mu and sigma need one value per group ({data.n_groups})")
+    if psi.m.shape != (K,) or not np.isclose(psi.m.sum(), 1.0) or (psi.m < 0).any():
+        raise InputError(f"m must be a point of the {K}-simplex, got {psi.m.tolist()}")
+    if (psi.sigma <= 0).any() or psi.alpha <= 0:
+        raise InputError("sigma and alpha must be positive")
+
+
+# ----------------------------------------------------------------------------- type-II ML
+@dataclass(frozen=True)
+class PopulationFit:
+    """Type-II maximum likelihood: ψ̂, Σ_i log p(Ξ_i | ψ̂), every start's optimum."""
+
+    psi: Hyperparameters
+    log_marginal: float
+    optima: np.ndarray
+    evaluations: int
+
+
+def _bounds(data: PopulationData):
+    lb = np.log(data.hypotheses.betas)
+    G, K = data.n_groups, data.hypotheses.thetas.shape[1]
+    return ([(lb.min() - MU_MARGIN, lb.max() + MU_MARGIN)] * G
+            + [tuple(math.log(v) for v in SIGMA_RANGE)] * G
+            + [tuple(math.log(v) for v in ALPHA_RANGE)] + [(-20.0, 20.0)] * K)
+
+
+def _unpack(x, G: int):
+    return x[:G], jnp.exp(x[G:2 * G]), jnp.exp(x[2 * G]), jax.nn.softmax(x[2 * G + 1:])
+
+
+def _pack(psi: Hyperparameters) -> np.ndarray:
+    z = np.log(np.maximum(psi.m, 1e-9))
+    return np.concatenate([psi.mu, np.log(psi.sigma), [math.log(psi.alpha)], z - z.mean()])
+
+
+def type2_ml(data: PopulationData, *, n_starts: int = 4, rng: np.random.Generator | int = 0,
+             weights: np.ndarray | None = None, start: Hyperparameters | None = None) -> PopulationFit:
+    """ψ̂ = argmax Σ_i w_i log p(Ξ_i | ψ) (``weights`` w, 1 by default; 0 leaves a participant
+    out) by L-BFGS-B on the exact gradient. Starts: the uniform-prior point (μ the grid's middle,
+    σ = 1, α·m = 1) or ``start``, then ``n_starts − 1`` random ones (μ uniform over the grid, σ
+    log-uniform on [0.1, 3], α log-uniform on [0.5·K, 20·K], m Dirichlet(1))."""
+    from .gradient import multistart_lbfgsb
+
+    if n_starts < 1:
+        raise InputError(f"n_starts must be >= 1, got {n_starts}")
+    rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    arrays = data.arrays()
+    G, K = data.n_groups, data.hypotheses.thetas.shape[1]
+    w = jnp.ones(data.n) if weights is None else jnp.asarray(weights, dtype=jnp.float64)
+    lb = np.log(data.hypotheses.betas)
+    first = start or Hyperparameters(np.full(G, lb.mean()), np.ones(G), K, np.full(K, 1.0 / K))
+    draws = iter(range(n_starts))
+
+    def draw_start():
+        if next(draws) == 0:
+            x = _pack(first)
+        else:
+            sigma = np.exp(rng.uniform(math.log(0.1), math.log(3.0), G))
+            alpha = K * math.exp(rng.uniform(math.log(0.5), math.log(20.0)))
+            mu, m = rng.uniform(lb.min(), lb.max(), G), rng.dirichlet(np.ones(K))
+            x = _pack(Hyperparameters(mu, sigma, alpha, m))
+        return x, x
+
+    def objective(x):
+        mu, sigma, alpha, m = _unpack(x, G)
+        return -jnp.sum(w * _log_marginals(arrays, mu, sigma, alpha, m))
+
+    bounds = _bounds(data)
+    run = multistart_lbfgsb(objective, draw_start, n_starts, bounds)
+    mu, sigma, alpha, m = (np.asarray(v) for v in _unpack(jnp.asarray(run.best.x), G))
+    return PopulationFit(Hyperparameters(mu, sigma, float(alpha), m), float(-run.best.fun), run.optima,
+                         run.evaluations)
+
+
+# ----------------------------------------------------------------------------- NUTS
+@dataclass(frozen=True)
+class Hyperprior:
+    """The hyperprior of :func:`sample_population` (see :data:`HYPERPRIOR_TEXT`); ``None`` fields
+    are set from the β grid by :meth:`resolve`: μ_g ~ Normal(middle of log β's grid, half its
+    span, at least 1)."""
+
+    mu_loc: float | None = None
+    mu_scale: float | None = None
+    sigma_scale: float = 1.0
+    alpha_log_loc: float | None = None  # log K by default: α·m = 1 at the median α and m uniform
+    alpha_log_scale: float = 1.0
+
+    def resolve(self, data: PopulationData) -> Hyperprior:
+        lb = np.log(data.hypotheses.betas)
+        K = data.hypotheses.thetas.shape[1]
+        return Hyperprior(
+            float(0.5 * (lb.min() + lb.max())) if self.mu_loc is None else self.mu_loc,
+            max(1.0, float(0.5 * (lb.max() - lb.min()))) if self.mu_scale is None else self.mu_scale,
+            self.sigma_scale, math.log(K) if self.alpha_log_loc is None else self.alpha_log_loc,
+            self.alpha_log_scale)
+
+    def text(self) -> str:
+        return (f"μ_g ~ Normal({self.mu_loc:.3g}, {self.mu_scale:.3g}) (log β), "
+                f"σ_g ~ HalfNormal({self.sigma_scale:g}), "
+                f"log α ~ Normal({self.alpha_log_loc:.3g}, {self.alpha_log_scale:g}), m ~ Dirichlet(1, …, 1)")
+
+
+HYPERPRIOR_TEXT = ("μ_g ~ Normal(the middle of log β's grid, half its span, at least 1), "
+                   "σ_g ~ HalfNormal(1) (natural-log units), log α ~ Normal(log K, 1) (α·m = 1, the "
+                   "uniform prior, at its median with m uniform), m ~ Dirichlet(1, …, 1); all independent")
+
+
+@dataclass(frozen=True)
+class PopulationPosterior:
+    """NUTS draws of ψ and their diagnostics.
+
+    Attributes:
+        mu, sigma: ``[C, D, G]``; alpha: ``[C, D]``; m: ``[C, D, K]``.
+        r_hat, ess_bulk: ``{name: value}`` per scalar hyperparameter (``mu[g]``, ``sigma[g]``,
+            ``alpha``, ``m[c]``), None where unavailable.
+        divergences: divergent transitions after warm-up.
+        hyperprior: the resolved :class:`Hyperprior`.
+        group_names: the groups' names.
+    """
+
+    mu: np.ndarray
+    sigma: np.ndarray
+    alpha: np.ndarray
+    m: np.ndarray
+    r_hat: dict[str, float | None]
+    ess_bulk: dict[str, float | None]
+    divergences: int
+    hyperprior: Hyperprior
+    group_names: tuple[str, ...]
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+    def scalars(self) -> dict[str, np.ndarray]:
+        """``{name: [C, D]}`` every scalar hyperparameter's draws."""
+        out = {}
+        for g, name in enumerate(self.group_names):
+            out[f"mu[{name}]"] = self.mu[..., g]
+            out[f"sigma[{name}]"] = self.sigma[..., g]
+        out["alpha"] = self.alpha
+        for c in range(self.m.shape[-1]):
+            out[f"m[{c}]"] = self.m[..., c]
+        return out
+
+    def draws(self) -> list[Hyperparameters]:
+        C, D, G = self.mu.shape
+        mu, sigma = self.mu.reshape(C * D, G), self.sigma.reshape(C * D, G)
+        alpha, m = self.alpha.reshape(-1), self.m.reshape(C * D, -1)
+        return [Hyperparameters(mu[s], sigma[s], alpha[s], m[s]) for s in range(C * D)]
+
+
+class _Data:
+    """What :func:`~.nuts_kernel.sample` reads of ``f``: the data (its compiled programs' argument)
+    and a placeholder warm start."""
+
+    def __init__(self, arrays):
+        self.counts = arrays
+
+    @staticmethod
+    def zero_start():
+        return jnp.zeros(())
+
+
+def _posterior(data: PopulationData, prior: Hyperprior):
+    """The :class:`~.nuts_kernel.Posterior` of ψ in x = (u_m [K−1], μ [G], log σ [G], log α)."""
+    import numpyro.distributions as dist
+    from numpyro.distributions.transforms import biject_to
+
+    from .nuts_kernel import Posterior
+
+    G, K = data.n_groups, data.hypotheses.thetas.shape[1]
+    m_map = biject_to(dist.constraints.simplex)
+    n_u = K - 1
+
+    def unpack(x):
+        u = x[:n_u]
+        m = m_map(u)
+        mu, log_sigma, log_alpha = x[n_u:n_u + G], x[n_u + G:n_u + 2 * G], x[n_u + 2 * G]
+        return u, m, mu, log_sigma, log_alpha
+
+    def log_hyperprior(mu, log_sigma, log_alpha):
+        # densities in (μ, log σ, log α): HalfNormal(σ)·σ, Normal(log α); m's Dirichlet(1) is constant
+        sigma = jnp.exp(log_sigma)
+        lp = jnp.sum(-0.5 * ((mu - prior.mu_loc) / prior.mu_scale) ** 2)
+        lp += jnp.sum(-0.5 * (sigma / prior.sigma_scale) ** 2 + log_sigma)
+        lp += -0.5 * ((log_alpha - prior.alpha_log_loc) / prior.alpha_log_scale) ** 2
+        return lp
+
+    def potential(x, start, arrays):
+        u, m, mu, log_sigma, log_alpha = unpack(x)
+        ll = jnp.sum(_log_marginals(arrays, mu, jnp.exp(log_sigma), jnp.exp(log_alpha), m))
+        return -(ll + log_hyperprior(mu, log_sigma, log_alpha) + m_map.log_abs_det_jacobian(u, m))
+
+    def constrained(x):
+        _, m, mu, log_sigma, log_alpha = unpack(x)
+        return m, jnp.concatenate([mu, jnp.exp(log_sigma), jnp.exp(log_alpha)[None]])
+
+    def log_density(m, rest, arrays):
+        mu, sigma, alpha = rest[:G], rest[G:2 * G], rest[2 * G]
+        return jnp.sum(_log_marginals(arrays, mu, sigma, alpha, m))
+
+    return Posterior(potential, constrained, log_density, n_u + 2 * G + 1)
+
+
+def sample_population(data: PopulationData, *, num_warmup: int = 500, num_samples: int = 500,
+                      num_chains: int = 4, seed: int = 0, prior: Hyperprior = Hyperprior(),
+                      target_accept: float = 0.9, progress=None) -> PopulationPosterior:
+    """Sample P(ψ | Ξ) ∝ p(ψ) Π_i p(Ξ_i | ψ) with NUTS (the participants marginalised exactly)."""
+    from .diagnostics import _MIN_DRAWS
+    from .nuts_kernel import check_run, sample
+
+    num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
+    prior = prior.resolve(data)
+    G = data.n_groups
+    post = _posterior(data, prior)
+    m, rest, div, _, _ = sample(post, _Data(data.arrays()), num_warmup=num_warmup, num_samples=num_samples,
+                                num_chains=num_chains, seed=int(seed), dense_mass=True,
+                                target_accept=target_accept)
+    m, rest = np.asarray(m, np.float64), np.asarray(rest, np.float64)
+    out = PopulationPosterior(rest[..., :G], rest[..., G:2 * G], rest[..., 2 * G], m, {}, {},
+                              int(div.sum()), prior, data.group_names)
+    r_hat, ess = {}, {}
+    C, D = out.alpha.shape
+    import arviz as az
+
+    for name, x in out.scalars().items():
+        with _warnings.catch_warnings():
+            _warnings.simplefilter("ignore")
+            r = float(az.rhat(x)) if C >= 2 and D >= _MIN_DRAWS else math.nan
+            e = float(az.ess(x, method="bulk")) if D >= _MIN_DRAWS else math.nan
+        r_hat[name] = r if math.isfinite(r) else None
+        ess[name] = e if math.isfinite(e) else None
+    warns = []
+    bad = [k for k, v in r_hat.items() if v is not None and v > 1.01]
+    if bad:
+        warns.append(f"R-hat above 1.01 for {', '.join(bad)}: the population's chains disagree; run longer")
+    low = [k for k, v in ess.items() if v is not None and v < 100 * C / 4]
+    if low:
+        warns.append(f"bulk ESS below {100 * C // 4} for {', '.join(low)}: intervals are rough; run longer")
+    if out.divergences:
+        warns.append(f"{out.divergences} divergent transitions after warm-up")
+    return PopulationPosterior(out.mu, out.sigma, out.alpha, out.m, r_hat, ess, out.divergences, prior,
+                               data.group_names, tuple(warns))
+
+
+# ----------------------------------------------------------------------------- posteriors
+def shrunk_posteriors(data: PopulationData,
+                      psis: Sequence[Hyperparameters] | Hyperparameters) -> np.ndarray:
+    """``[N, n_theta, n_beta]`` each participant's posterior over the grid under the population,
+    averaged over ``psis`` (NUTS draws, or one ψ̂)."""
+    psis = [psis] if isinstance(psis, Hyperparameters) else list(psis)
+    if not psis:
+        raise InputError("need at least one set of hyperparameters")
+    arrays = data.arrays()
+    mu = jnp.asarray(np.stack([p.mu for p in psis]))
+    sigma = jnp.asarray(np.stack([p.sigma for p in psis]))
+    alpha = jnp.asarray([p.alpha for p in psis])
+    m = jnp.asarray(np.stack([p.m for p in psis]))
+
+    @jax.jit
+    def one(mu, sigma, alpha, m):
+        lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
+        lp = arrays[0] + lpt[:, :, None] + lpb[:, None, :]
+        return jnp.exp(lp - jlse(lp, axis=(1, 2), keepdims=True))
+
+    total = jnp.zeros(data.log_lik.shape)
+    chunk = 64
+    batched = jax.jit(jax.vmap(one))
+    for s in range(0, len(psis), chunk):
+        part = batched(mu[s:s + chunk], sigma[s:s + chunk], alpha[s:s + chunk], m[s:s + chunk])
+        total = total + part.sum(0)
+    return np.asarray(total) / len(psis)
+
+
+def independent_posteriors(data: PopulationData) -> np.ndarray:
+    """``[N, n_theta, n_beta]`` each participant's posterior under the uniform prior over their
+    allowed θ's and the β grid (the study's independent posterior)."""
+    with np.errstate(divide="ignore"):
+        lp = data.log_lik + np.where(data.allowed, 0.0, -np.inf)[:, :, None]
+    return np.exp(lp - logsumexp(lp, axis=(1, 2), keepdims=True))
+
+
+# ----------------------------------------------------------------------------- held-out
+def _predict(train: np.ndarray, unit: np.ndarray, log_prior: np.ndarray) -> float:
+    """log P(unit | train) = log Σ_h P(h | train) P(unit | h) under ``log_prior`` (arrays over h)."""
+    with np.errstate(invalid="ignore"):
+        return float(logsumexp(train + unit + log_prior) - logsumexp(train + log_prior))
+
+
+def heldout_comparison(data: PopulationData, units: Sequence[Sequence[tuple[np.ndarray, int]]], *,
+                       fit: PopulationFit | None = None, n_starts: int = 1) -> dict[str, Any]:
+    """Each participant's held-out units predicted three ways, in nats per action.
+
+    ``units[i]`` lists participant i's held-out units as ``(train [H], unit [H], actions)``: the
+    log-likelihood of the rest of their data, of the unit alone, and the unit's number of actions
+    (the study's split: leave-one-episode-out, else leave-one-task-out); an empty list leaves them
+    out of the comparison. For each unit:
+
+    - ``independent``: the uniform prior over their allowed θ's and the β grid;
+    - ``population``: the population prior at ψ̂_−i, type-II ML on every other participant (warm
+      started at ``fit``, the type-II fit on everyone, or fitted here), so the participant's own
+      data never informs their prior;
+    - ``pooled``: one posterior shared by everyone: the uniform prior times every other
+      participant's likelihood and the participant's training data.
+
+    Returns ``{"per_participant": [{participant, split_units, actions, independent, population,
+    pooled}], "total": {independent, population, pooled}, "actions"}``; values in nats per action,
+    None for a participant without units.
+    """
+    if len(units) != data.n:
+        raise InputError(f"need the held-out units of every participant ({data.n}), got {len(units)}")
+    fit = fit or type2_ml(data, n_starts=n_starts)
+    ll = data.log_lik.reshape(data.n, -1)
+    with np.errstate(divide="ignore"):
+        flat_allowed = np.repeat(np.where(data.allowed, 0.0, -np.inf), data.hypotheses.n_beta, axis=1)
+    uniform = flat_allowed - logsumexp(flat_allowed, axis=1, keepdims=True)
+    total_ll = ll.sum(axis=0)
+    rows, sums, n_all = [], dict.fromkeys(("independent", "population", "pooled"), 0.0), 0
+    for i in range(data.n):
+        if not units[i]:
+            rows.append({"participant": data.participants[i], "units": 0, "actions": 0,
+                         "independent": None, "population": None, "pooled": None})
+            continue
+        w = np.ones(data.n)
+        w[i] = 0.0
+        psi = type2_ml(data, n_starts=1, weights=w, start=fit.psi).psi if data.n > 1 else fit.psi
+        lp_pop = population_log_prior(data, psi)[i].reshape(-1)
+        others = total_ll - ll[i]
+        score = dict.fromkeys(sums, 0.0)
+        actions = 0
+        for train, lu, n in units[i]:
+            train, lu = np.asarray(train, dtype=np.float64), np.asarray(lu, dtype=np.float64)
+            score["independent"] += _predict(train, lu, uniform[i])
+            score["population"] += _predict(train, lu, lp_pop)
+            score["pooled"] += _predict(train + others, lu, uniform[i])
+            actions += int(n)
+        rows.append({"participant": data.participants[i], "units": len(units[i]), "actions": actions,
+                     **{k: v / actions for k, v in score.items()}})
+        for k in sums:
+            sums[k] += score[k]
+        n_all += actions
+    total = {k: (v / n_all if n_all else None) for k, v in sums.items()}
+    return {"per_participant": rows, "total": total, "actions": n_all}
