@@ -325,32 +325,44 @@ def type2_ml(data: PopulationData, *, n_starts: int = 4, rng: np.random.Generato
 class Hyperprior:
     """The hyperprior of :func:`sample_population` (see :data:`HYPERPRIOR_TEXT`); ``None`` fields
     are set from the β grid by :meth:`resolve`: μ_g ~ Normal(middle of log β's grid, half its
-    span, at least 1)."""
+    span, at least 1); σ_g's floor a quarter of the grid's smallest step in log β.
+
+    Why the floor: below it the population already sits on one cell of the grid (the next cell
+    gets e^−8 of its mass), and the normal density on the cells then switches from one cell to
+    the next within a sliver of μ, a cliff NUTS cannot step across (its divergences). A floor
+    there keeps every population the grid can tell apart and none of the cliff.
+    """
 
     mu_loc: float | None = None
     mu_scale: float | None = None
     sigma_scale: float = 1.0
     alpha_log_loc: float | None = None  # log K by default: α·m = 1 at the median α and m uniform
     alpha_log_scale: float = 1.0
+    sigma_floor: float | None = None
 
     def resolve(self, data: PopulationData) -> Hyperprior:
         lb = np.log(data.hypotheses.betas)
         K = data.hypotheses.thetas.shape[1]
+        steps = np.diff(np.sort(lb))
+        floor = self.sigma_floor
+        if floor is None:
+            floor = 0.25 * float(steps.min()) if steps.size else 0.25
         return Hyperprior(
             float(0.5 * (lb.min() + lb.max())) if self.mu_loc is None else self.mu_loc,
             max(1.0, float(0.5 * (lb.max() - lb.min()))) if self.mu_scale is None else self.mu_scale,
             self.sigma_scale, math.log(K) if self.alpha_log_loc is None else self.alpha_log_loc,
-            self.alpha_log_scale)
+            self.alpha_log_scale, floor)
 
     def text(self) -> str:
         return (f"μ_g ~ Normal({self.mu_loc:.3g}, {self.mu_scale:.3g}) (log β), "
-                f"σ_g ~ HalfNormal({self.sigma_scale:g}), "
+                f"σ_g ~ HalfNormal({self.sigma_scale:g}) on σ_g ≥ {self.sigma_floor:.3g}, "
                 f"log α ~ Normal({self.alpha_log_loc:.3g}, {self.alpha_log_scale:g}), m ~ Dirichlet(1, …, 1)")
 
 
 HYPERPRIOR_TEXT = ("μ_g ~ Normal(the middle of log β's grid, half its span, at least 1), "
-                   "σ_g ~ HalfNormal(1) (natural-log units), log α ~ Normal(log K, 1) (α·m = 1, the "
-                   "uniform prior, at its median with m uniform), m ~ Dirichlet(1, …, 1); all independent")
+                   "σ_g ~ HalfNormal(1) (natural-log units) truncated below at a quarter of the grid's "
+                   "smallest step in log β, log α ~ Normal(log K, 1) (α·m = 1, the uniform prior, at its "
+                   "median with m uniform), m ~ Dirichlet(1, …, 1); all independent")
 
 
 @dataclass(frozen=True)
@@ -408,7 +420,7 @@ class _Data:
 
 
 def _posterior(data: PopulationData, prior: Hyperprior):
-    """The :class:`~.nuts_kernel.Posterior` of ψ in x = (u_m [K−1], μ [G], log σ [G], log α)."""
+    """The :class:`~.nuts_kernel.Posterior` of ψ in x = (u_m [K−1], μ [G], log(σ − floor) [G], log α)."""
     import numpyro.distributions as dist
     from numpyro.distributions.transforms import biject_to
 
@@ -421,25 +433,26 @@ def _posterior(data: PopulationData, prior: Hyperprior):
     def unpack(x):
         u = x[:n_u]
         m = m_map(u)
-        mu, log_sigma, log_alpha = x[n_u:n_u + G], x[n_u + G:n_u + 2 * G], x[n_u + 2 * G]
-        return u, m, mu, log_sigma, log_alpha
+        mu, v, log_alpha = x[n_u:n_u + G], x[n_u + G:n_u + 2 * G], x[n_u + 2 * G]
+        return u, m, mu, v, log_alpha
 
-    def log_hyperprior(mu, log_sigma, log_alpha):
-        # densities in (μ, log σ, log α): HalfNormal(σ)·σ, Normal(log α); m's Dirichlet(1) is constant
-        sigma = jnp.exp(log_sigma)
+    def log_hyperprior(mu, v, log_alpha):
+        # densities in (μ, v = log(σ − floor), log α): HalfNormal(σ)·e^v on σ ≥ floor, Normal(log α);
+        # m's Dirichlet(1) is constant
+        sigma = prior.sigma_floor + jnp.exp(v)
         lp = jnp.sum(-0.5 * ((mu - prior.mu_loc) / prior.mu_scale) ** 2)
-        lp += jnp.sum(-0.5 * (sigma / prior.sigma_scale) ** 2 + log_sigma)
+        lp += jnp.sum(-0.5 * (sigma / prior.sigma_scale) ** 2 + v)
         lp += -0.5 * ((log_alpha - prior.alpha_log_loc) / prior.alpha_log_scale) ** 2
         return lp
 
     def potential(x, start, arrays):
-        u, m, mu, log_sigma, log_alpha = unpack(x)
-        ll = jnp.sum(_log_marginals(arrays, mu, jnp.exp(log_sigma), jnp.exp(log_alpha), m))
-        return -(ll + log_hyperprior(mu, log_sigma, log_alpha) + m_map.log_abs_det_jacobian(u, m))
+        u, m, mu, v, log_alpha = unpack(x)
+        ll = jnp.sum(_log_marginals(arrays, mu, prior.sigma_floor + jnp.exp(v), jnp.exp(log_alpha), m))
+        return -(ll + log_hyperprior(mu, v, log_alpha) + m_map.log_abs_det_jacobian(u, m))
 
     def constrained(x):
-        _, m, mu, log_sigma, log_alpha = unpack(x)
-        return m, jnp.concatenate([mu, jnp.exp(log_sigma), jnp.exp(log_alpha)[None]])
+        _, m, mu, v, log_alpha = unpack(x)
+        return m, jnp.concatenate([mu, prior.sigma_floor + jnp.exp(v), jnp.exp(log_alpha)[None]])
 
     def log_density(m, rest, arrays):
         mu, sigma, alpha = rest[:G], rest[G:2 * G], rest[2 * G]
