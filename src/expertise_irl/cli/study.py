@@ -87,6 +87,14 @@ def study(
         str | None,
         typer.Option(help="A manifest column: study.md compares β between its groups (Mann–Whitney)."),
     ] = None,
+    population: Annotated[
+        bool,
+        typer.Option("--population", help="Also fit the participants as one population (--method discrete, "
+                     "--share both): log β ~ Normal(μ, σ²) and θ ~ Dirichlet(α·m) over the grid, learned "
+                     "from the study (NUTS); each participant's pooled estimate beside the independent one "
+                     "in study.csv (*_pooled), DIR/population.json and population.png, a held-out "
+                     "comparison; with --group-by, each group its own (μ, σ)."),
+    ] = False,
     models: Annotated[
         str | None,
         typer.Option(
@@ -129,7 +137,7 @@ def study(
         share=share,
         expertise=expertise,
     )
-    report = ReportOptions(figures=figures, group_by=group_by)
+    report = ReportOptions(figures=figures, group_by=group_by, population=population)
     _print_outcome(_run(path, out, opts, workers, scheduler, report), out)
 
 
@@ -195,12 +203,27 @@ def _print_outcome(outcome, out: Path) -> None:
     if n_warn:
         _warn(f"{n_warn} warning(s) for {sum(1 for r in outcome.participants if r['warnings'])} "
               f"participant(s): see {out}/study.md (Warnings) and each result.json's diagnostics")
-    wrote = "study.csv, study.md, tasks.csv, study.png" + (", models.csv" if outcome.evidence else "")
+    pop = outcome.population
+    if pop is not None:
+        parts = [f"{g}: median β {b['median_beta']['mean']:.3g} (90% {b['median_beta']['q05']:.3g}–"
+                 f"{b['median_beta']['q95']:.3g}), σ of log β {b['sigma_log_beta']['mean']:.2f}"
+                 for g, b in pop["population_beta"].items()]
+        h = pop["heldout_nats_per_action"]
+        held = (f"; held-out nats/action: population {h['population']:.3f}, independent "
+                f"{h['independent']:.3f}, pooled {h['pooled']:.3f}" if h["actions"] else "")
+        _say("population: " + "; ".join(parts) + held)
+        for c in pop["comparisons"]:
+            _say(f"population: P(μ_{c['a']} < μ_{c['b']}) = {c['p_mu_a_lt_mu_b']:.3f}")
+        for w in pop["diagnostics"]["warnings"]:
+            _warn(f"population: {w}")
+    wrote = ("study.csv, study.md, tasks.csv, study.png" + (", models.csv" if outcome.evidence else "")
+             + (", population.json, population.png" if pop is not None else ""))
     t = outcome.timing or {}
     _say(
         f"wrote {out}/{wrote} and participants/: {len(outcome.participants)} "
         f"participants, {t.get('figures', 0)} figure(s); {outcome.tasks_run} engine task(s) run, "
         f"{outcome.tasks_skipped} already done ({outcome.wall_time_s:.1f} s: reading and the β grid "
-        f"{t.get('setup_s', 0):.1f} s, inference {t.get('inference_s', 0):.1f} s, reports "
-        f"{t.get('reports_s', 0):.1f} s, figures {t.get('figures_s', 0):.1f} s)"
+        f"{t.get('setup_s', 0):.1f} s, inference {t.get('inference_s', 0):.1f} s, "
+        + (f"population {t['population_s']:.1f} s, " if "population_s" in t else "")
+        + f"reports {t.get('reports_s', 0):.1f} s, figures {t.get('figures_s', 0):.1f} s)"
     )

@@ -139,6 +139,20 @@ def log_evidence(task_ll: Sequence[np.ndarray], hyp: HypothesisSet, share: str,
     return float(_lse(np.sum(task_ll, axis=0) + log_prior_joint(hyp, zero_features)))
 
 
+def heldout_units(episodes: Sequence[int], share: str) -> tuple[str, list[tuple[int, int | None]]]:
+    """The held-out split of a participant whose task t has ``episodes[t]`` episodes (rules in the
+    module docstring): ``(split, units)``, each unit ``(task, episode)``, episode None for a whole
+    task."""
+    T = len(episodes)
+    units: list[tuple[int, int | None]] = [(t, e) for t in range(T) if episodes[t] >= 2
+                                           for e in range(episodes[t])]
+    if units:
+        return "episode", units
+    if T >= 2 and share == "both":
+        return "task", [(t, None) for t in range(T)]
+    return "none", []
+
+
 def heldout_check(episode_ll: Sequence[np.ndarray], episode_actions: Sequence[Sequence[int]],
                   hyp: HypothesisSet, share: str, zero_features: Sequence[int] = ()) -> dict[str, Any]:
     """The held-out check of one participant (rules in the module docstring).
@@ -151,9 +165,7 @@ def heldout_check(episode_ll: Sequence[np.ndarray], episode_actions: Sequence[Se
     task_ll = [np.sum(e, axis=0) for e in episode_ll]
     T = len(task_ll)
     episodes = sum(len(e) for e in episode_ll)
-    units: list[tuple[int, int | None]] = [(t, e) for t in range(T) if len(episode_ll[t]) >= 2
-                                           for e in range(len(episode_ll[t]))]
-    split = "episode" if units else ("task" if T >= 2 and share == "both" else "none")
+    split, units = heldout_units([len(e) for e in episode_ll], share)
     out: dict[str, Any] = {"split": split, "units": 0, "actions": 0, "log_likelihood": None,
                            "per_action": None, "unavailable": None}
     if split == "none":
@@ -163,8 +175,6 @@ def heldout_check(episode_ll: Sequence[np.ndarray], episode_actions: Sequence[Se
                if share == "beta" and T >= 2 else " or, with --share both, 2 tasks")
         )
         return out
-    if split == "task":
-        units = [(t, None) for t in range(T)]
     total = log_evidence(task_ll, hyp, share, zero_features)
     if not math.isfinite(total):
         out["unavailable"] = "every hypothesis of the set gives the participant's data probability 0"

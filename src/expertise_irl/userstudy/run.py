@@ -94,6 +94,7 @@ class ReportOptions:
 
     figures: str = "all"  # --figures all|none|N
     group_by: str | None = None  # --group-by COLUMN
+    population: bool = False  # --population: the hierarchical model over the participants
 
 
 class StudyFailed(Exception):
@@ -115,6 +116,7 @@ class StudyOutcome:
     evidence: dict[str, dict[str, Any]] | None = None  # --models: per participant
     # seconds: setup (inputs, β grid), inference (engine phases), reports, figures
     timing: dict[str, float] | None = None
+    population: dict[str, Any] | None = None  # --population: population.json
 
 
 def map_key(world) -> str:
@@ -313,6 +315,10 @@ def run_study(
     check_model(opts.model, "--model")
     UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
     check_expertise(opts)
+    if report.population:
+        from .population import check_population
+
+        check_population(opts.method, opts.share)
     model_evidence.check_models(opts.models, opts.method)
     manifest = read_manifest(
         manifest_path, rate=opts.rate, max_dt=opts.max_dt, fill_gaps=opts.fill_gaps, snap=opts.snap
@@ -346,7 +352,8 @@ def run_study(
     s1 = _run_phase(study, out / "engine" / "inference", cfg, "inference", workers, scheduler, on_task)
     rows = engine.load(out / "engine" / "inference")
     if opts.method == "discrete":
-        estimates = _discrete_estimates(manifest, _episode_lls(rows), hyp, opts.share, opts.expertise)
+        ells = _episode_lls(rows)
+        estimates = _discrete_estimates(manifest, ells, hyp, opts.share, opts.expertise)
     else:
         estimates = _continuous_estimates(manifest, rows, opts.share)
     evidence, s_models = None, []
@@ -372,17 +379,33 @@ def run_study(
     s2 = _run_phase(OPTIMAL, out / "engine" / "optimal", cfg2, "optimal", workers, scheduler, on_task)
     optimal = engine.load(out / "engine" / "optimal")
     inference_s = time.perf_counter() - t_inf
+    population = None
+    if report.population:
+        from .population import run_population
+
+        population = run_population(manifest, ells, estimates, report.group_by)
+        for pid, values in population["participants"].items():
+            estimates[pid]["doc"]["population"] = values
     t_rep = time.perf_counter()
-    participants, jobs = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence, grid, report)
+    participants, jobs = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence, grid, report,
+                                  population)
     report_s = time.perf_counter() - t_rep
     t_fig = time.perf_counter()
     _draw(out, jobs, figures_for, participants, names, manifest, workers, scheduler, on_figure)
+    if population is not None:
+        from ..plots.population import render_population_png
+
+        render_population_png(out / "population.png", population, list(names),
+                              title=f"Population of {manifest.path.name}")
     figures_s = time.perf_counter() - t_fig
     ran = s1.ran + s2.ran + sum(s.ran for s in s_models)
     skipped = s1.skipped + s2.skipped + sum(s.skipped for s in s_models)
     return StudyOutcome(out, participants, ran, skipped, time.perf_counter() - t0, names, evidence,
                         {"setup_s": t_inf - t0, "inference_s": inference_s, "reports_s": report_s,
-                         "figures_s": figures_s, "figures": len(figures_for)})
+                         "figures_s": figures_s, "figures": len(figures_for),
+                         **({"population_s": population["document"]["timing_s"]["total"]}
+                            if population else {})},
+                        population["document"] if population else None)
 
 
 def check_expertise(opts: StudyOptions) -> None:
@@ -816,7 +839,8 @@ def _f(x) -> float:
 
 
 def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyps, names,
-             evidence, grid, report: ReportOptions) -> tuple[list[dict[str, Any]], list[tuple]]:
+             evidence, grid, report: ReportOptions,
+             population: dict[str, Any] | None = None) -> tuple[list[dict[str, Any]], list[tuple]]:
     """Every participant's result, then ``study.csv``, ``tasks.csv``, ``study.md`` (and ``models.csv``);
     returns the ``study.csv`` rows and the figures' jobs."""
     pdir = out / "participants"
@@ -826,18 +850,30 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         row, rows, modes[pid], job = _participant_report(pdir, manifest, pid, estimates[pid], optimal, opts,
                                                          evidence, grid)
         warnings[pid] = job[3].get("diagnostics", {}).get("warnings") or []
+        if population is not None:
+            row.update(population["participants"][pid])
         study_rows.append(row)
         task_rows += rows
         jobs.append(job)
     feats = list(names)
     extra = list(manifest.extra_columns)
+    pop_columns = []
+    if population is not None:
+        from .population import population_columns
+
+        pop_columns = population_columns(feats)
     write_csv(out / "study.csv", study_rows, study_columns(feats, extra=extra)
-              + (list(CHANGING_COLUMNS) if opts.expertise == "changing" else []))
+              + (list(CHANGING_COLUMNS) if opts.expertise == "changing" else []) + pop_columns)
     write_csv(out / "tasks.csv", task_rows, task_columns(feats, extra=extra))
     any_hyp = next(iter(hyps.values()), None)
     sections = ""
     if opts.expertise == "changing":
         sections += changing_markdown(study_rows)
+    if population is not None:
+        from .population import population_markdown
+
+        write_json(out / "population.json", finite_or_null(population["document"]))
+        sections += population_markdown(population["document"], feats)
     if report.group_by is not None:
         from .groups import group_markdown
 
