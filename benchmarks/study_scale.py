@@ -9,15 +9,19 @@ or not). Then runs, through the command line in a fresh process,
     expertise-irl study manifest.csv --out DIR --group-by group [--workers N]
 
 (discrete, ``--betas auto``, every figure) and prints the split the command reports on its
-last line: engine phases (inference), tables, figures; and the same study again into a fresh
-directory with ``--figures none``.
+last line: engine phases (inference), tables, figures; the same study again into a fresh
+directory with ``--figures none``; and, with ``--population``, once more into a fresh directory
+with ``--figures none --population`` (the hierarchical fit of ``study --population`` beside the
+shared solves it reads).
 
-    python benchmarks/study_scale.py [--participants 100] [--maps 12] [--workers N] [--json FILE]
+    python benchmarks/study_scale.py [--participants 100] [--maps 12] [--workers N] [--population]
+                                     [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import subprocess
@@ -58,7 +62,7 @@ def build(root: Path, participants: int, n_maps: int, seed: int = 0) -> Path:
 
 
 SPLIT = re.compile(r"\(([\d.]+) s: reading and the β grid ([\d.]+) s, inference ([\d.]+) s, "
-                   r"reports ([\d.]+) s, figures ([\d.]+) s\)")
+                   r"(?:population ([\d.]+) s, )?reports ([\d.]+) s, figures ([\d.]+) s\)")
 
 
 def run(manifest: Path, out: Path, cache: Path, extra: list[str]) -> dict:
@@ -71,9 +75,14 @@ def run(manifest: Path, out: Path, cache: Path, extra: list[str]) -> dict:
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
     m = SPLIT.search(proc.stdout.strip().splitlines()[-1])
-    total, setup, inference, reports, figures = (float(x) for x in m.groups())
-    return {"wall_s": round(wall, 1), "study_s": total, "setup_s": setup, "inference_s": inference,
-            "reports_s": reports, "figures_s": figures, "figures_share": round(figures / total, 2)}
+    total, setup, inference, population, reports, figures = (float(x) if x else None for x in m.groups())
+    res = {"wall_s": round(wall, 1), "study_s": total, "setup_s": setup, "inference_s": inference,
+           "reports_s": reports, "figures_s": figures, "figures_share": round(figures / total, 2)}
+    if population is not None:
+        timing = json.loads((out / "population.json").read_text())["timing_s"]
+        res.update(population_s=population, population_share=round(population / total, 2),
+                   population_parts_s={k: round(v, 1) for k, v in timing.items()})
+    return res
 
 
 def main() -> None:
@@ -81,6 +90,7 @@ def main() -> None:
     ap.add_argument("--participants", type=int, default=100)
     ap.add_argument("--maps", type=int, default=12)
     ap.add_argument("--workers", type=int, default=None, help="local workers (default: one per core)")
+    ap.add_argument("--population", action="store_true", help="also time study --population")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     info = machine_info()
@@ -93,9 +103,11 @@ def main() -> None:
         cache = tmp / "jax-cache"
         every = run(manifest, tmp / "all", cache, extra)
         none = run(manifest, tmp / "none", cache, [*extra, "--figures", "none"])
+        pooled = (run(manifest, tmp / "population", cache, [*extra, "--figures", "none", "--population"])
+                  if args.population else None)
     result = {**info, "participants": args.participants, "maps": args.maps,
               "rows": args.participants * args.maps, "workers": args.workers, "build_s": round(built, 1),
-              "figures_all": every, "figures_none": none}
+              "figures_all": every, "figures_none": none, **({"population": pooled} if pooled else {})}
     report(result, args.json)
 
 
