@@ -109,7 +109,15 @@ def run_population(manifest, ells, estimates, group_by: str | None = None, *, ch
 
     t0 = time.perf_counter()
     hyp, names, lls, allowed, units, splits = _participant_lls(manifest, ells, estimates)
-    pids = list(manifest.participants)
+    # A participant whom every hypothesis gives probability 0 has no place in the population.
+    keep = [i for i, (ll, ok) in enumerate(zip(lls, allowed, strict=True))
+            if np.isfinite(ll.reshape(hyp.n_theta, hyp.n_beta)[ok]).any()]
+    left_out = [manifest.participants[i] for i in range(len(lls)) if i not in keep]
+    if not keep:
+        raise InputError("--population: every hypothesis of the set gives every participant's data "
+                         "probability 0; there is no population to fit")
+    lls, allowed, units, splits = ([x[i] for i in keep] for x in (lls, allowed, units, splits))
+    pids = [manifest.participants[i] for i in keep]
     groups = None
     if group_by is not None:
         groups = [group_name(";".join(dict.fromkeys(t.extra[group_by] for t in manifest.tasks_of(p))))
@@ -150,6 +158,12 @@ def run_population(manifest, ells, estimates, group_by: str | None = None, *, ch
             widths[kind].append(math.log(beta_quantile(betas, p, 0.95) / beta_quantile(betas, p, 0.05)))
         moved.append(abs(math.log(float(pb @ betas)) - math.log(float(ib @ betas))))
     doc = population_document(data, fit, post, draws, held, splits, widths, moved, names, group_by)
+    if left_out:
+        doc["diagnostics"]["warnings"].append(
+            f"left out of the population: {', '.join(left_out)} (every hypothesis of the set gives their "
+            "data probability 0)")
+        doc["left_out"] = left_out
+        per.update({pid: dict.fromkeys(population_columns(names), math.nan) for pid in left_out})
     doc["timing_s"] = {"type2_ml": t_fit - t0, "nuts": t_nuts - t_fit,
                        "shrinkage_and_heldout": t_held - t_nuts, "total": time.perf_counter() - t0}
     return {"document": doc, "participants": per, "data": data, "posterior": post, "shrunk": shrunk,
