@@ -120,11 +120,18 @@ def check_writable(path: str | Path, *, force: bool, inputs=()) -> Path:
 
 
 def file_digest(path: str | Path) -> str:
-    """``sha256:<hex>`` of a file, to record exactly which input a result came from."""
+    """``sha256:<hex>`` of a file, to record exactly which input a result came from; of a folder
+    (a ROS 2 bag), of its files' relative names and contents, in name order."""
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
+    path = Path(path)
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    for p in files:
+        if path.is_dir():
+            name = p.relative_to(path).as_posix().encode()
+            h.update(len(name).to_bytes(8, "little") + name + p.stat().st_size.to_bytes(8, "little"))
+        with open(p, "rb") as fh:
+            for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                h.update(block)
     return "sha256:" + h.hexdigest()
 
 

@@ -32,6 +32,7 @@ FillGapsOption = Annotated[bool, typer.Option(
 SnapOption = Annotated[bool, typer.Option(
     "--snap", help="Move samples outside the map or inside obstacles to the nearest free cell "
     "(counted) instead of stopping with an error.")]
+_BAG = "ROS bag: "
 
 
 def load_floor_plan_arg(map_spec: str):
@@ -51,7 +52,9 @@ def load_floor_plan_arg(map_spec: str):
 def discretise(
     map_spec: Annotated[str, typer.Argument(
         metavar="MAP", help="Warehouse floor plan (.txt with its TOML).")],
-    recording: Annotated[Path, typer.Option(help="Recording CSV: episode,t,x,y (seconds, metres).")],
+    recording: Annotated[Path, typer.Option(
+        help="Recording: a CSV episode,t,x,y (seconds, metres), or a ROS bag (.bag, .db3, .mcap or a "
+        "ROS 2 bag folder) with --topic.")],
     out_path: Annotated[Path, typer.Option(
         "--out", help="Output demonstrations CSV (episode,step,x,y,heading).")],
     png: Annotated[Path | None, typer.Option(
@@ -61,16 +64,36 @@ def discretise(
     fill_gaps: FillGapsOption = False,
     snap: SnapOption = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the outputs if they exist.")] = False,
+    topic: Annotated[str | None, typer.Option(
+        help=_BAG + "the topic of the positions: nav_msgs/msg/Odometry, geometry_msgs/msg/PoseStamped, "
+        "geometry_msgs/msg/PoseWithCovarianceStamped or tf2_msgs/msg/TFMessage.")] = None,
+    child: Annotated[str | None, typer.Option(
+        help=_BAG + "on a tf topic, the robot's frame (the transforms' child_frame_id).")] = None,
+    parent: Annotated[str | None, typer.Option(
+        help=_BAG + "on a tf topic, the floor plan's frame (the transforms' header.frame_id; direct "
+        "transforms only).")] = None,
+    frame: Annotated[str | None, typer.Option(
+        help=_BAG + "a pose message whose header.frame_id is not this is an error.")] = None,
+    clock: Annotated[str, typer.Option(
+        help=_BAG + "time from the message's header stamp (header) or the bag's receive time "
+        "(receive).")] = "header",
+    episode_topic: Annotated[str | None, typer.Option(
+        help=_BAG + "each message on this std_msgs Int32/String/Empty topic starts a new episode "
+        "(default: one episode per bag).")] = None,
+    episode_gap: Annotated[float | None, typer.Option(
+        help=_BAG + "more seconds than this between two samples start a new episode.")] = None,
 ) -> None:
     """Turn a Cartesian recording into demonstrations on a floor plan, and draw what was done.
 
     Samples are mapped to cells, resampled at --rate, repeats dropped, diagonal steps split,
     and each state's heading set from the move into it (docs/user-studies.md). Gaps and
     samples off the free cells stop with an error unless --fill-gaps / --snap; what they
-    changed is counted and printed.
+    changed is counted and printed. A ROS bag gives the same samples from the positions on
+    --topic (docs/user-studies.md, "ROS bags").
     """
     from ..demos.csv_io import write_demos_csv
     from ..demos.recordings import discretise_recording
+    from ..demos.rosbag import BagOptions
     from ..plots.floorplan import render_discretised_png
     from ..results import check_writable
     from .core import _check_figure_format
@@ -83,8 +106,10 @@ def discretise(
         raise InputError(f"{png}: the figure and the demonstrations would be the same file")
     _check_figure_format(png)
     plan = load_floor_plan_arg(map_spec)
+    bag = BagOptions(topic=topic, child=child, parent=parent, frame=frame, clock=clock,
+                     episode_topic=episode_topic, episode_gap=episode_gap)
     result = discretise_recording(recording, plan, rate=rate, max_dt=max_dt, fill_gaps=fill_gaps,
-                                  snap=snap)
+                                  snap=snap, bag=bag)
     write_demos_csv(out_path, result.trajectories, plan.to_mdp(), fmt="grid")
     render_discretised_png(png, plan, result, title=f"{recording} on {plan.name}")
     for ep in result.episodes:
@@ -107,7 +132,9 @@ def simulate_recordings_cmd(
         metavar="MAP", help="Warehouse floor plan (.txt with its TOML) or a bundled floor plan.")],
     theta: Annotated[str, typer.Option(help="Preferences θ*, comma-separated (normalised to unit l1).")],
     beta: Annotated[float, typer.Option(help="Expertise temperature β* > 0 (small = expert).")],
-    out_path: Annotated[Path, typer.Option("--out", help="Output recording CSV: episode,t,x,y.")],
+    out_path: Annotated[Path, typer.Option(
+        "--out", help="Output recording CSV: episode,t,x,y; or, named .bag, .db3 or .mcap, a ROS bag of the "
+        "same samples (nav_msgs/msg/Odometry on /odom, each episode starting with a message on /episode).")],
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 1,
     seed: Annotated[int, typer.Option(min=0, help="Random seed (moves, timing, noise, gaps).")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (moves).")] = 500,

@@ -2,7 +2,8 @@
 
 A recording is a CSV with columns ``episode,t,x,y`` (integer episode label, seconds,
 metres; other columns are ignored; the samples of an episode are contiguous and in time
-order). Coordinates follow the floor plan (:mod:`expertise_irl.worlds.warehouse`): x to
+order), or a ROS bag whose positions on one topic give the same samples
+(:mod:`.rosbag`). Coordinates follow the floor plan (:mod:`expertise_irl.worlds.warehouse`): x to
 the right from the left edge, y down from the top edge (up from the bottom with
 ``y_up = true``).
 
@@ -43,6 +44,7 @@ from ..mdp import ACTION_DELTAS
 from ..worlds.grid import GOAL
 from ..worlds.warehouse import ACTION_AXIS, HORIZONTAL, VERTICAL, WarehouseMap
 from .csv_rows import parse_float, parse_int, read_rows
+from .rosbag import BagOptions, is_bag, read_bag
 from .trajectories import Trajectories, validate
 
 RECORDING_COLUMNS = ("episode", "t", "x", "y")
@@ -63,8 +65,9 @@ class Recording:
         episode: int64 episode label of each sample (samples of one episode contiguous).
         t: float64 time in seconds (non-decreasing within an episode).
         x, y: float64 position in metres.
-        line: int64 file line of each sample (1 = header), for messages.
-        source: file name, for messages.
+        line: int64 file line of each sample (1 = header), for messages; in a bag, the
+            number of its message on the topic (1 = first).
+        source: file name (a bag's with ``:topic``), for messages.
     """
 
     episode: np.ndarray
@@ -85,7 +88,22 @@ class Recording:
         return np.flatnonzero(self.episode == episode)
 
 
-def read_recording(path: str | Path) -> Recording:
+def read_recording(path: str | Path, bag: BagOptions | None = None) -> Recording:
+    """Read a recording: a ROS bag (``.bag``, ``.db3``, ``.mcap`` or a folder) with ``bag``'s
+    options (:func:`.rosbag.read_bag`), or else a CSV (:func:`read_recording_csv`; ``bag``'s
+    options, if any are set, are an error there)."""
+    path = Path(path)
+    bag = bag if bag is not None else BagOptions()
+    if is_bag(path):
+        s = read_bag(path, bag)
+        return Recording(s.episode, s.t, s.x, s.y, s.message, source=f"{path}:{s.topic}")
+    if bag.given():
+        raise InputError(f"{path}: {', '.join(bag.given())} apply to a ROS bag (.bag, .db3, .mcap or a "
+                         "ROS 2 bag folder), not to a CSV recording")
+    return read_recording_csv(path)
+
+
+def read_recording_csv(path: str | Path) -> Recording:
     """Read a recording CSV ``episode,t,x,y`` (columns by name, in any order; others ignored).
 
     Blank lines, whitespace around fields, a UTF-8 BOM and CRLF line ends are accepted.
@@ -445,6 +463,8 @@ def discretise(recording: Recording, plan: WarehouseMap, *, rate: float = DEFAUL
     return Discretised(trajs, tuple(episodes), float(rate), float(max_dt), bool(fill_gaps), bool(snap))
 
 
-def discretise_recording(path: str | Path, plan: WarehouseMap, **options) -> Discretised:
-    """:func:`read_recording` then :func:`discretise` (same keyword options)."""
-    return discretise(read_recording(path), plan, **options)
+def discretise_recording(path: str | Path, plan: WarehouseMap, *, bag: BagOptions | None = None,
+                         **options) -> Discretised:
+    """:func:`read_recording` (a CSV, or a ROS bag read with ``bag``) then :func:`discretise`
+    (same keyword options)."""
+    return discretise(read_recording(path, bag), plan, **options)

@@ -13,6 +13,12 @@ first row. A participant's tasks must have the same features, in the same order 
 one thing on all of them); participants may differ (a study's θ columns are the union of its
 features, empty where a participant's tasks lack one).
 
+A recording may be a ROS bag (``.bag``, ``.db3``, ``.mcap`` or a ROS 2 bag folder,
+:mod:`..demos.rosbag`); the optional columns ``bag_topic``, ``bag_child``, ``bag_parent``,
+``bag_frame``, ``bag_clock``, ``bag_episode_topic`` and ``bag_episode_gap`` (:data:`BAG_COLUMNS`)
+give that row's ``discretise`` options ``--topic`` ... ``--episode-gap``; ``bag_topic`` is
+required for a bag, and a bag column filled on another row is an error.
+
 Other columns (a condition, a group, an instruction) are carried verbatim into ``tasks.csv``
 and ``study.csv`` (:attr:`StudyTask.extra`), and ``study --group-by`` can compare by one. An
 extra column may not take the name of a column the study writes.
@@ -30,6 +36,7 @@ from pathlib import Path
 
 from ..demos.csv_io import read_demos_csv
 from ..demos.recordings import Discretised, discretise_recording
+from ..demos.rosbag import BagOptions, is_bag
 from ..demos.trajectories import Trajectories
 from ..errors import InputError, read_text
 from ..mdp import TabularMDP
@@ -39,6 +46,9 @@ from ..worlds.zones import bundled_maps
 
 REQUIRED = ("participant", "map")
 SOURCES = ("recording", "demos")
+#: The optional columns of a ROS bag's options (``bag_<option>``, :class:`BagOptions`' fields).
+BAG_COLUMNS = tuple(f"bag_{o}" for o in ("topic", "child", "parent", "frame", "clock", "episode_topic",
+                                          "episode_gap"))
 #: A participant ID names a folder: letters, digits, ``.``, ``_``, ``-``; not starting with ``.``.
 PARTICIPANT_ID = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}")
 
@@ -142,8 +152,9 @@ def read_manifest(
         kind = _source_kind(at, cell)
         source = base / cell[kind]
         map_path, key = _map_path(at, base, cell["map"])
-        if not source.is_file():
+        if not (source.is_file() or (kind == "recording" and source.is_dir())):
             raise InputError(f"{at}: {kind} {cell[kind]}: no such file ({source})")
+        bag = _bag_options(at, cell, kind, source)
         try:
             if key not in worlds:
                 worlds[key] = _load_task_map(map_path, cell["map"])
@@ -155,7 +166,7 @@ def read_manifest(
                                      "needs a floor plan (world = \"warehouse\"); give the moves as demos "
                                      "(episode,step,x,y or episode,step,state,action)")
                 disc = discretise_recording(
-                    source, world, rate=rate, max_dt=max_dt, fill_gaps=fill_gaps, snap=snap
+                    source, world, rate=rate, max_dt=max_dt, fill_gaps=fill_gaps, snap=snap, bag=bag
                 )
                 trajs = disc.trajectories
             else:
@@ -221,7 +232,25 @@ def _columns(path: Path, rows: list[list[str]]) -> tuple[list[str], dict[str, in
     for c in header:
         if c and header.count(c) > 1:
             raise InputError(f"{path}:1: column {c!r} appears twice")
-    return header, {c: header.index(c) for c in (*REQUIRED, *SOURCES) if c in header}
+    return header, {c: header.index(c) for c in (*REQUIRED, *SOURCES, *BAG_COLUMNS) if c in header}
+
+
+def _bag_options(at: str, cell: dict[str, str], kind: str, source: Path) -> BagOptions | None:
+    """The row's bag options (None for a row that is not a bag and fills no bag column)."""
+    given = {c[len("bag_"):]: cell[c] for c in BAG_COLUMNS if cell.get(c)}
+    if kind != "recording" or not is_bag(source):
+        if given:
+            what = "demos" if kind == "demos" else "a CSV recording"
+            raise InputError(f"{at}: {', '.join('bag_' + c for c in given)} apply to a recording that is "
+                             f"a ROS bag (.bag, .db3, .mcap or a ROS 2 bag folder), not to {what}")
+        return None
+    if "episode_gap" in given:
+        try:
+            given["episode_gap"] = float(given["episode_gap"])
+        except ValueError:
+            raise InputError(f"{at}: bag_episode_gap {given['episode_gap']!r} is not a number of "
+                             "seconds") from None
+    return BagOptions(**given, spelling="column")
 
 
 def _source_kind(at: str, cell: dict[str, str]) -> str:

@@ -18,17 +18,23 @@ At 1 Hz resampling a robot faster than one cell per second skips cells, which in
 reports as gaps; the default speed, 0.8 cells per second, never does. Noise beyond about a
 quarter of a cell puts samples in the wrong cell (extra moves) or in obstacles (use
 ``--snap``). All randomness comes from one generator: the same seed gives the same file.
+
+:func:`write_recording` writes the CSV ``episode,t,x,y``, or, by the file's suffix, a ROS bag
+holding the same samples (:func:`write_bag`).
 """
 
 from __future__ import annotations
 
 import csv
 import math
+import os
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..demos.rosbag import BAG_SUFFIXES
 from ..demos.simulation import simulate
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
@@ -135,7 +141,10 @@ def simulate_recordings(
 
 
 def write_recording(path: str | Path, episodes) -> int:
-    """Write ``episode,t,x,y`` (t to the millisecond, x and y to 0.1 mm); returns the rows written."""
+    """Write ``episode,t,x,y`` (t to the millisecond, x and y to 0.1 mm), or a ROS bag if the name ends
+    in ``.bag``, ``.db3`` or ``.mcap`` (:func:`write_bag`); returns the rows (messages) written."""
+    if Path(path).suffix in BAG_SUFFIXES:
+        return write_bag(path, episodes)
     n = 0
     with open(path, "w", encoding="utf-8", newline="") as fh:
         w = csv.writer(fh)
@@ -144,4 +153,71 @@ def write_recording(path: str | Path, episodes) -> int:
             for ti, xi, yi in zip(t.tolist(), x.tolist(), y.tolist(), strict=True):
                 w.writerow([e, f"{ti:.3f}", f"{xi:.4f}", f"{yi:.4f}"])
                 n += 1
+    return n
+
+
+#: The header stamp of a simulated bag's first sample (2024-01-01 00:00 UTC), and the seconds between
+#: one episode's last sample and the next one's first.
+BAG_START_S = 1_704_067_200
+BAG_EPISODE_PAUSE_S = 5.0
+
+
+def write_bag(path: str | Path, episodes, *, topic: str = "/odom", episode_topic: str = "/episode") -> int:
+    """Write the episodes as a ROS bag of the robot's odometry, one file by the suffix: a ROS 1
+    ``.bag`` (Noetic's message types) or a ROS 2 ``.db3`` or ``.mcap`` (Humble's; the storage
+    file alone, which ``rosbags`` and ``discretise`` read without its folder).
+
+    Each sample is a ``nav_msgs/msg/Odometry`` on ``topic`` in frame ``map`` (child
+    ``base_link``), received when stamped, with t and the position rounded as the CSV rounds
+    them (so the bag and the CSV give the same recording); each episode starts with a
+    ``std_msgs/msg/Empty`` on ``episode_topic``. The episodes follow each other
+    :data:`BAG_EPISODE_PAUSE_S` seconds apart from :data:`BAG_START_S`. Returns the samples written.
+    """
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    ros1 = path.suffix == ".bag"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    T = ts.types
+    odometry, empty = "nav_msgs/msg/Odometry", "std_msgs/msg/Empty"
+    zero3 = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    twist = T["geometry_msgs/msg/TwistWithCovariance"](
+        twist=T["geometry_msgs/msg/Twist"](linear=zero3, angular=zero3), covariance=np.zeros(36))
+    still = T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+
+    def message(ns: int, x: float, y: float):
+        header = T["std_msgs/msg/Header"](
+            **({"seq": 0} if ros1 else {}), frame_id="map",
+            stamp=T["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000))
+        pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                                           orientation=still)
+        return T[odometry](header=header, child_frame_id="base_link", twist=twist,
+                           pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)))
+
+    n = 0
+    with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.") as tmp:
+        inner = Path(tmp) / "bag"
+        if ros1:
+            writer, made = Writer1(inner), inner
+        else:
+            plugin = StoragePlugin.MCAP if path.suffix == ".mcap" else StoragePlugin.SQLITE3
+            writer, made = Writer2(inner, version=9, storage_plugin=plugin), inner / f"bag{path.suffix}"
+        with writer:
+            odom = writer.add_connection(topic, odometry, typestore=ts)
+            marks = writer.add_connection(episode_topic, empty, typestore=ts)
+            start = BAG_START_S * 1_000_000_000
+            for _, t, x, y in episodes:
+                writer.write(marks, start, serialize(T[empty](), empty))
+                ns = start
+                for ti, xi, yi in zip(t.tolist(), x.tolist(), y.tolist(), strict=True):
+                    ns = start + round(float(f"{ti:.3f}") * 1000) * 1_000_000  # the CSV's milliseconds
+                    writer.write(odom, ns, serialize(message(ns, float(f"{xi:.4f}"), float(f"{yi:.4f}")),
+                                                     odometry))
+                    n += 1
+                start = ns + round(BAG_EPISODE_PAUSE_S * 1e9)
+        os.replace(made, path)
     return n
