@@ -1,4 +1,4 @@
 """Demonstrations: the :class:`~.trajectories.Trajectories` type and its checks
 (:mod:`.trajectories`), a simulated person (:mod:`.simulation`), CSV I/O (:mod:`.csv_io`,
 on the row reader and number parsers of :mod:`.csv_rows`), and Cartesian recordings turned
-into demonstrations (:mod:`.recordings`)."""
+into demonstrations (:mod:`.recordings`; a ROS bag's positions as a recording, :mod:`.rosbag`)."""
