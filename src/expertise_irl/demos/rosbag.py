@@ -137,6 +137,21 @@ def _check_topics(path: Path, o: BagOptions, topics: dict) -> str:
     return msgtype
 
 
+def _positions(path: Path, o: BagOptions, msgtype: str, msg, number: int) -> list:
+    """``[(header, point)]``: the stamped positions one message gives (its ``number`` on the topic)."""
+    if msgtype == TF_TYPE:
+        return [(tr.header, tr.transform.translation) for tr in msg.transforms
+                if _frame(tr.header.frame_id) == _frame(o.parent or "")
+                and _frame(tr.child_frame_id) == _frame(o.child or "")]
+    if o.frame is not None and _frame(msg.header.frame_id) != _frame(o.frame):
+        raise InputError(f"{path}: topic {o.topic}: message {number} is in frame {msg.header.frame_id!r}, "
+                         f"expected {o.frame!r} ({o.name('frame')})")
+    pose = msg
+    for attr in POSE_TYPES[msgtype]:
+        pose = getattr(pose, attr)
+    return [(msg.header, pose.position)]
+
+
 def read_bag(path: str | Path, options: BagOptions) -> BagSamples:
     """The samples of ``options.topic`` in the bag at ``path`` (rules in the module docstring).
 
@@ -160,7 +175,6 @@ def read_bag(path: str | Path, options: BagOptions) -> BagSamples:
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise InputError(f"{path}: is a folder but not a ROS 2 bag (it has no metadata.yaml)")
     header_clock = o.clock == "header"
-    child, parent = (_frame(o.child or ""), _frame(o.parent or ""))
     t_ns: list[int] = []
     recv_ns: list[int] = []
     xy: list[tuple[float, float]] = []
@@ -179,20 +193,9 @@ def read_bag(path: str | Path, options: BagOptions) -> BagSamples:
                     continue
                 count += 1
                 msg = reader.deserialize(raw, conn.msgtype)
-                if msgtype == TF_TYPE:
-                    for tr in msg.transforms:
-                        pairs[(tr.header.frame_id, tr.child_frame_id)] = None
-                    found = [(tr.header, tr.transform.translation) for tr in msg.transforms
-                             if _frame(tr.header.frame_id) == parent and _frame(tr.child_frame_id) == child]
-                else:
-                    pose = msg
-                    for attr in POSE_TYPES[msgtype]:
-                        pose = getattr(pose, attr)
-                    if o.frame is not None and _frame(msg.header.frame_id) != _frame(o.frame):
-                        raise InputError(f"{path}: topic {o.topic}: message {count} is in frame "
-                                         f"{msg.header.frame_id!r}, expected {o.frame!r} ({o.name('frame')})")
-                    found = [(msg.header, pose.position)]
-                for header, p in found:
+                if msgtype == TF_TYPE:  # every (parent, child), for the message when none matches
+                    pairs.update(dict.fromkeys((t.header.frame_id, t.child_frame_id) for t in msg.transforms))
+                for header, p in _positions(path, o, msgtype, msg, count):
                     x, y = float(p.x), float(p.y)
                     if not (math.isfinite(x) and math.isfinite(y)):
                         raise InputError(f"{path}: topic {o.topic}: message {count}: position "
