@@ -125,21 +125,33 @@ def population_data(log_lik: Sequence[np.ndarray], hyp: HypothesisSet, *,
     θ's each allows (``[n_theta]`` bool; all by default) and each one's group name (groups in order
     of first appearance). A participant whom every allowed hypothesis gives probability 0 has no
     place in the population: :class:`InputError` names them."""
-    ll = np.asarray([np.asarray(x, dtype=np.float64) for x in log_lik])
-    N = ll.shape[0]
+    rows = [np.asarray(x, dtype=np.float64) for x in log_lik]
+    N = len(rows)
     if N == 0:
         raise InputError("the population model needs at least one participant")
-    if ll.ndim != 2 or ll.shape[1] != len(hyp):
-        raise InputError(f"each participant's log-likelihood must have one value per hypothesis "
-                         f"({len(hyp)}), got shape {ll.shape}")
     names = tuple(str(p) for p in (participants if participants is not None else range(N)))
-    ok = np.ones((N, hyp.n_theta), dtype=bool) if allowed is None else np.asarray(allowed, dtype=bool)
-    if ok.shape != (N, hyp.n_theta):
-        raise InputError(f"allowed must be [participants, n_theta] = [{N}, {hyp.n_theta}], got {ok.shape}")
+    if len(names) != N:
+        raise InputError(f"need one name per participant, got {len(names)} for {N}")
+    for i, x in enumerate(rows):
+        if x.shape != (len(hyp),):
+            raise InputError(f"participant {names[i]}: the log-likelihood must have one value per hypothesis "
+                             f"({len(hyp)}), got shape {x.shape}")
+    ll = np.stack(rows)
+    if allowed is None:
+        ok = np.ones((N, hyp.n_theta), dtype=bool)
+    else:
+        masks = [np.asarray(a, dtype=bool) for a in allowed]
+        shapes = {m.shape for m in masks}
+        ok = np.stack(masks) if len(shapes) == 1 else None
+        if ok is None or ok.shape != (N, hyp.n_theta):
+            got = ok.shape if ok is not None else f"{len(masks)} masks of shapes {sorted(shapes)}"
+            raise InputError(f"allowed must be [participants, n_theta] = [{N}, {hyp.n_theta}], got {got}")
     grid = ll.reshape(N, hyp.n_theta, hyp.n_beta)
     for i in range(N):
-        if np.isnan(grid[i]).any():
-            raise InputError(f"participant {names[i]}: a log-likelihood is NaN")
+        if np.isnan(grid[i]).any() or np.isposinf(grid[i]).any():
+            raise InputError(f"participant {names[i]}: a log-likelihood is NaN or +inf")
+        if not ok[i].any():
+            raise InputError(f"participant {names[i]}: their prior allows no θ of the set")
         if not np.isfinite(grid[i][ok[i]]).any():
             raise InputError(f"participant {names[i]}: every hypothesis of the set gives their data "
                              "probability 0, so the population model cannot include them")
@@ -562,7 +574,7 @@ def heldout_comparison(data: PopulationData, units: Sequence[Sequence[tuple[np.n
     - ``pooled``: one posterior shared by everyone: the uniform prior times every other
       participant's likelihood and the participant's training data.
 
-    Returns ``{"per_participant": [{participant, split_units, actions, independent, population,
+    Returns ``{"per_participant": [{participant, units, actions, independent, population,
     pooled}], "total": {independent, population, pooled}, "actions"}``; values in nats per action,
     None for a participant without units.
     """
