@@ -1,0 +1,63 @@
+"""Griffe extension for the API reference: the library's reST conventions, read as Markdown.
+
+The docstrings use Sphinx roles (``:func:`solve```, ``:class:`~expertise_irl.errors.InputError```)
+and document module constants with ``#:`` comments. mkdocstrings renders Markdown, so without
+this the roles would show as literal ``:func:`` text and the constants would have no description.
+
+- A role becomes inline code with Sphinx's display text: ``~a.b.c`` shows ``c``, a leading ``.``
+  (relative to the module) is dropped, a trailing ``()`` is kept.
+- An attribute without a docstring takes the ``#:`` comment lines just above it.
+
+The docstrings themselves are not changed; only what the site shows.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import griffe
+
+_ROLE = re.compile(r":(?:py:)?(?:func|class|meth|mod|data|attr|exc|obj|const):`([^`]+)`")
+
+
+def _display(target: str) -> str:
+    target = target.strip()
+    if "<" in target and target.endswith(">"):  # :func:`text <target>`
+        return target.split("<", 1)[0].strip()
+    if target.startswith("~"):
+        return target[1:].rsplit(".", 1)[-1]
+    return target.lstrip(".")
+
+
+def rst_roles_to_markdown(text: str) -> str:
+    """``text`` with every Sphinx role replaced by inline code of its display text."""
+    return _ROLE.sub(lambda m: f"`{_display(m.group(1))}`", text)
+
+
+def _comment_docstring(attr: griffe.Attribute) -> str | None:
+    """The ``#:`` comment lines directly above ``attr``'s definition, or None."""
+    module = attr.module
+    lines = module.lines
+    if not lines or attr.lineno is None:
+        return None
+    found: list[str] = []
+    i = attr.lineno - 2  # the line above the definition, 0-based
+    while i >= 0 and lines[i].lstrip().startswith("#:"):
+        found.append(lines[i].lstrip()[2:].strip())
+        i -= 1
+    return " ".join(reversed(found)) or None
+
+
+class RstRoles(griffe.Extension):
+    """Sphinx roles as inline code; ``#:`` comments as attribute docstrings."""
+
+    def on_object(self, *, obj: griffe.Object, loader: griffe.GriffeLoader, **kwargs: Any) -> None:
+        if obj.is_alias:
+            return
+        if obj.docstring is None and obj.is_attribute:
+            text = _comment_docstring(obj)  # type: ignore[arg-type]
+            if text:
+                obj.docstring = griffe.Docstring(text, lineno=obj.lineno, parent=obj)
+        if obj.docstring is not None:
+            obj.docstring.value = rst_roles_to_markdown(obj.docstring.value)
