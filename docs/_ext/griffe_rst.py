@@ -6,6 +6,9 @@ this the roles would show as literal ``:func:`` text and the constants would hav
 
 - A role becomes inline code with Sphinx's display text: ``~a.b.c`` shows ``c``, a leading ``.``
   (relative to the module) is dropped, a trailing ``()`` is kept.
+- A definition list (a line ending in ``.``, its definition indented below it) loses the
+  indentation, which Markdown would show as a code block; Google-style sections (``Args:``)
+  end in ``:`` and are left to griffe.
 - An attribute without a docstring takes the ``#:`` comment lines just above it.
 
 The docstrings themselves are not changed; only what the site shows.
@@ -14,11 +17,14 @@ The docstrings themselves are not changed; only what the site shows.
 from __future__ import annotations
 
 import re
+import textwrap
 from typing import Any
 
 import griffe
 
 _ROLE = re.compile(r":(?:py:)?(?:func|class|meth|mod|data|attr|exc|obj|const):`([^`]+)`")
+#: an unindented line ending in "." and the indented block right below it (blank lines inside)
+_DEFINITION = re.compile(r"^(\S[^\n]*\.\n)((?:[ ]{4}[^\n]*\n|\n(?=[ ]{4}))+)", re.M)
 
 
 def _display(target: str) -> str:
@@ -30,9 +36,10 @@ def _display(target: str) -> str:
     return target.lstrip(".")
 
 
-def rst_roles_to_markdown(text: str) -> str:
-    """``text`` with every Sphinx role replaced by inline code of its display text."""
-    return _ROLE.sub(lambda m: f"`{_display(m.group(1))}`", text)
+def rst_to_markdown(text: str) -> str:
+    """``text`` with Sphinx roles as inline code and definition lists dedented."""
+    text = _ROLE.sub(lambda m: f"`{_display(m.group(1))}`", text)
+    return _DEFINITION.sub(lambda m: m.group(1) + textwrap.dedent(m.group(2)), text + "\n").rstrip("\n")
 
 
 def _comment_docstring(attr: griffe.Attribute) -> str | None:
@@ -50,7 +57,7 @@ def _comment_docstring(attr: griffe.Attribute) -> str | None:
 
 
 class RstRoles(griffe.Extension):
-    """Sphinx roles as inline code; ``#:`` comments as attribute docstrings."""
+    """Sphinx roles and definition lists as Markdown; ``#:`` comments as attribute docstrings."""
 
     def on_object(self, *, obj: griffe.Object, loader: griffe.GriffeLoader, **kwargs: Any) -> None:
         if obj.is_alias:
@@ -60,4 +67,4 @@ class RstRoles(griffe.Extension):
             if text:
                 obj.docstring = griffe.Docstring(text, lineno=obj.lineno, parent=obj)
         if obj.docstring is not None:
-            obj.docstring.value = rst_roles_to_markdown(obj.docstring.value)
+            obj.docstring.value = rst_to_markdown(obj.docstring.value)
