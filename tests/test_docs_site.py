@@ -59,7 +59,8 @@ def site(tmp_path_factory) -> Path:
         [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"), "-d", str(out)],
         cwd=work, env=env, capture_output=True, text=True, timeout=1200,
     )
-    assert proc.returncode == 0, f"mkdocs build --strict failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-8000:]}"
+    log = f"{proc.stdout[-4000:]}\n{proc.stderr[-8000:]}"
+    assert proc.returncode == 0, f"mkdocs build --strict failed:\n{log}"
     return out
 
 
@@ -90,7 +91,8 @@ def test_tutorial_links_resolve(site: Path, name: str) -> None:
     assert targets, f"tutorials/{name} links to no other page"
     for target in targets:
         resolved = (page_dir / target).resolve()
-        assert resolved.is_file() or (resolved / "index.html").is_file(), f"tutorials/{name}: broken link {target}"
+        found = resolved.is_file() or (resolved / "index.html").is_file()
+        assert found, f"tutorials/{name}: broken link {target}"
 
 
 def test_api_reference_documents_every_public_name(site: Path) -> None:
