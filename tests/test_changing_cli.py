@@ -82,6 +82,24 @@ def test_changing_expertise_is_refused_where_it_is_not_built(learner):
     assert not (d / "x.json").exists()
 
 
+def _two_task_manifest(d, mdp, people, rng) -> None:
+    """``d/m.csv``: each person's β per episode (``people[pid]``, even length) split over two
+    crossroads tasks in order, one demonstrations file per task (episodes labelled from 0)."""
+    lines = ["participant,map,demos"]
+    for pid, betas in people.items():
+        half = len(betas) // 2
+        for task in range(2):
+            parts = []
+            for e in range(half):
+                t = simulate(mdp, THETA, betas[half * task + e], 1, rng, model="maxent-relative")
+                parts.append(Trajectories(np.full(len(t), e), t.step, t.state, t.action))
+            tr = Trajectories(*(np.concatenate([getattr(p, k) for p in parts])
+                                for k in ("episode", "step", "state", "action")))
+            write_demos_csv(d / f"{pid}-{task}.csv", tr, mdp)
+            lines.append(f"{pid},crossroads,{pid}-{task}.csv")
+    (d / "m.csv").write_text("\n".join(lines) + "\n")
+
+
 def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
     """Four learners (β falling 2 → 0.05 over 8 episodes, 4 per task, two tasks on crossroads) and
     one steady person: each participant's curve runs over their tasks in manifest order and is the
@@ -96,20 +114,9 @@ def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
 
     mdp = load_bundled_world("crossroads").to_mdp()
     rng = np.random.default_rng(3)
-    lines = ["participant,map,demos"]
     people = {f"L{i}": np.exp(np.linspace(np.log(2.0), np.log(0.05), 8)) for i in range(4)}
     people["S"] = np.full(8, 0.3)
-    for pid, betas in people.items():
-        for task in range(2):
-            parts = []
-            for e in range(4):
-                t = simulate(mdp, THETA, betas[4 * task + e], 1, rng, model="maxent-relative")
-                parts.append(Trajectories(np.full(len(t), e), t.step, t.state, t.action))
-            tr = Trajectories(*(np.concatenate([getattr(p, k) for p in parts])
-                                for k in ("episode", "step", "state", "action")))
-            write_demos_csv(tmp_path / f"{pid}-{task}.csv", tr, mdp)
-            lines.append(f"{pid},crossroads,{pid}-{task}.csv")
-    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    _two_task_manifest(tmp_path, mdp, people, rng)
     out = tmp_path / "out"
     ok(invoke("study", tmp_path / "m.csv", "--out", out, "--workers", "1", "--betas", "paper-sim",
               "--model", "maxent-relative", "--expertise", "changing", "--figures", "none"))
@@ -149,18 +156,7 @@ def test_a_map_study_fits_each_participants_curve_over_their_tasks(tmp_path):
     mdp = load_bundled_world("crossroads").to_mdp()
     rng = np.random.default_rng(4)
     people = {"L": np.exp(np.linspace(np.log(2.0), np.log(0.05), 6)), "S": np.full(6, 0.3)}
-    lines = ["participant,map,demos"]
-    for pid, betas in people.items():
-        for task in range(2):
-            parts = []
-            for e in range(3):
-                t = simulate(mdp, THETA, betas[3 * task + e], 1, rng, model="maxent-relative")
-                parts.append(Trajectories(np.full(len(t), e), t.step, t.state, t.action))
-            tr = Trajectories(*(np.concatenate([getattr(p, k) for p in parts])
-                                for k in ("episode", "step", "state", "action")))
-            write_demos_csv(tmp_path / f"{pid}-{task}.csv", tr, mdp)
-            lines.append(f"{pid},crossroads,{pid}-{task}.csv")
-    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    _two_task_manifest(tmp_path, mdp, people, rng)
     out = tmp_path / "out"
     ok(invoke("study", tmp_path / "m.csv", "--out", out, "--workers", "1", "--method", "map",
               "--model", "maxent-relative", "--expertise", "changing", "--figures", "none"))
