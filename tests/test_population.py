@@ -528,3 +528,22 @@ def test_sbc_of_the_hyperparameters(world):
     for name, q in summary["quantities"].items():
         assert sum(q["counts"]) == SBC_STUDIES
         assert q["p_value"] > 1e-3, (name, q)
+
+
+def test_fast_marginal_and_theta_prior_agree_with_their_definitions(study, study_posterior):
+    """The marginal's β sum taken as a product with the row-scaled likelihood equals the plain
+    log-sum-exp over every cell at the posterior's draws (its floor never acts there), and the
+    population's θ prior is the grid prior with β summed out."""
+    import jax.numpy as jnp
+
+    from expertise_irl.inference import population as pop
+
+    arrays = study.data.arrays()
+    everyone = population_data(np.zeros((1, len(study.data.hypotheses))), study.data.hypotheses)
+    for psi in study_posterior.draws()[::60]:
+        args = (jnp.asarray(psi.mu), jnp.asarray(psi.sigma), psi.alpha, jnp.asarray(psi.m))
+        np.testing.assert_allclose(np.asarray(pop._log_marginals(arrays, *args)),
+                                   np.asarray(pop._log_marginals_lse(arrays, *args)), rtol=0, atol=1e-9)
+        grid = np.exp(population_log_prior(everyone, psi)[0]).sum(axis=1)
+        np.testing.assert_allclose(pop.population_theta_prior(study.data.hypotheses, psi), grid,
+                                   rtol=1e-10, atol=1e-300)

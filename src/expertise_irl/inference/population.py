@@ -61,8 +61,8 @@ from ..planning import kernels as _float64  # noqa: F401  (switches JAX to float
 
 __all__ = ["HYPERPRIOR_TEXT", "THETA_SHRINK", "Hyperparameters", "Hyperprior", "PopulationData",
            "PopulationFit", "PopulationPosterior", "heldout_comparison", "log_marginals",
-           "population_data", "population_log_prior", "sample_population", "shrunk_posteriors",
-           "type2_ml"]
+           "population_data", "population_log_prior", "population_theta_prior", "sample_population",
+           "shrunk_posteriors", "type2_ml"]
 
 #: ε of θ̃ = (1 − ε)·θ + ε/K, where the Dirichlet density of the θ set is evaluated.
 THETA_SHRINK = 0.1
@@ -234,6 +234,14 @@ def population_log_prior(data: PopulationData, psi: Hyperparameters) -> np.ndarr
     lpb, lpt = _log_priors(data.arrays(), jnp.asarray(psi.mu), jnp.asarray(psi.sigma), psi.alpha,
                            jnp.asarray(psi.m))
     return np.asarray(lpt[:, :, None] + lpb[:, None, :])
+
+
+def population_theta_prior(hyp: HypothesisSet, psi: Hyperparameters) -> np.ndarray:
+    """``[n_theta]`` the population's prior over the whole θ set under ψ, P(θ_j | α, m) ∝
+    Π_c θ̃_jc^(α·m_c − 1) (every θ allowed)."""
+    K = hyp.thetas.shape[1]
+    lpt = np.log((1 - THETA_SHRINK) * hyp.thetas + THETA_SHRINK / K) @ (psi.alpha * psi.m - 1.0)
+    return np.exp(lpt - logsumexp(lpt))
 
 
 def _check_psi(data: PopulationData, psi: Hyperparameters) -> None:

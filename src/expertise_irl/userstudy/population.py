@@ -135,7 +135,8 @@ def run_population(manifest, ells, estimates, group_by: str | None = None, *, ch
     post = pop.sample_population(data, num_warmup=warmup, num_samples=samples, num_chains=chains, seed=seed)
     t_nuts = time.perf_counter()
     draws = post.draws()
-    shrunk = pop.shrunk_posteriors(data, draws[::max(1, -(-len(draws) // SHRINK_DRAWS))])
+    draws = draws[::max(1, -(-len(draws) // SHRINK_DRAWS))]  # every k-th, at most SHRINK_DRAWS
+    shrunk = pop.shrunk_posteriors(data, draws)
     independent = pop.independent_posteriors(data)
     held = pop.heldout_comparison(data, units, fit=fit)
     t_held = time.perf_counter()
@@ -194,12 +195,7 @@ def population_document(data, fit, post, draws, held, splits, widths, moved, nam
     for name, x in post.scalars().items():
         hyper[name] = {**_stats(x), "r_hat": post.r_hat[name], "ess_bulk": post.ess_bulk[name]}
     # The population mean of θ over the set: E_ψ[Σ_j P(θ_j | α, m) θ_j] (all θ's allowed).
-    thin = draws[:: max(1, len(draws) // 400)]
-    means = []
-    for psi in thin:
-        lp = pop.population_log_prior(_all_allowed(data), psi)[0]  # [n_theta, n_beta]
-        means.append(np.exp(lp).sum(axis=1) @ hyp.thetas)  # β summed out
-    means = np.asarray(means)
+    means = np.asarray([pop.population_theta_prior(hyp, psi) @ hyp.thetas for psi in draws])
     theta_mean = {f: _stats(means[:, c]) for c, f in enumerate(names)}
     beta_pop = {g: {"median_beta": _stats(np.exp(post.mu[..., k])),
                     "sigma_log_beta": _stats(post.sigma[..., k]),
@@ -249,12 +245,6 @@ def population_document(data, fit, post, draws, held, splits, widths, moved, nam
         "diagnostics": {"divergences": post.divergences, "warnings": list(post.warnings),
                         "chains": int(post.alpha.shape[0]), "draws_per_chain": int(post.alpha.shape[1])},
     }
-
-
-def _all_allowed(data):
-    """``data`` with one participant who allows every θ (for the population's own mean)."""
-    return dataclasses.replace(data, log_lik=data.log_lik[:1], allowed=np.ones_like(data.allowed[:1]),
-                               groups=data.groups[:1], participants=data.participants[:1])
 
 
 def _fmt(s: dict[str, float], digits: int = 3) -> str:
