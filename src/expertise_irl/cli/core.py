@@ -222,6 +222,11 @@ def infer(
     warmup: Annotated[int, typer.Option(min=1, help="nuts: warm-up steps per chain.")] = 500,
     samples: Annotated[int, typer.Option(min=1, help="nuts: draws per chain.")] = 500,
     goal_reward: GoalRewardOption = None,
+    check: Annotated[str, typer.Option(
+        "--check", help="Low expertise or missing features? off, fast (posterior predictive checks, the "
+        "default) or full (also a per-state reward fitted with β, compared on held-out episodes): "
+        "diagnostics.misspecification, a warning when the features do not explain the behaviour, "
+        "and features whose θ the task cannot identify.")] = "fast",
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Infer expertise β and preferences θ from demonstrations.
@@ -236,9 +241,11 @@ def infer(
     """
     from ..demos.csv_io import read_demos_csv
     from ..inference.methods import document, get_method
+    from ..inference.misspecification import add_to_result, check_level, posterior_of_run
     from ..results import INLINE_DRAWS, check_writable, samples_path_for, write_json
 
     chosen = get_method(method)
+    check_level(check)
     _refuse_options_of_other_methods(ctx, method)
     inputs = [demos, *_map_files(map_spec), mdp_path]
     check_writable(out_path, force=force, inputs=inputs)
@@ -258,6 +265,9 @@ def infer(
                 "goal_reward_mode": goal_reward_mode_of(mdp, zone_map), "gamma": mdp.gamma}
     doc = document(run, feature_names=mdp.feature_names, settings=settings,
                    data={"episodes": trajs.n_episodes, "actions": len(trajs)}, samples_path=samples_path)
+    doc["settings"]["check"] = check
+    add_to_result(doc, [(mdp, trajs)], posterior_of_run(run, mdp), check=check, model=run.settings["model"],
+                  seed=seed)
     write_json(out_path, doc)
     _report_result(doc, out_path, len(trajs))
 

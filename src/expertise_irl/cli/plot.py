@@ -21,6 +21,10 @@ def plot(
     mdp_path: Annotated[Path | None, typer.Option(
         "--mdp", help="MDP archive (.npz) instead of --map; drawn from its state_xy.")] = None,
     demos: Annotated[Path | None, typer.Option(help="Demonstrations CSV to draw on the map.")] = None,
+    check: Annotated[bool, typer.Option(
+        "--check", help="Draw the result's misspecification checks instead: each predictive statistic's "
+        "replicated values against the demonstrations', and (--check full results, with --map or --mdp) "
+        "the map of where a per-state reward departs from θ̂·φ.")] = False,
     force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Draw a result: posterior of β and of each θ_i, the map with the demonstrations, and the belief after each action for --per-action results.
@@ -53,6 +57,12 @@ def plot(
             from ..demos.csv_io import read_demos_csv
 
             trajs = read_demos_csv(demos, mdp)
+    if check:
+        from ..plots.check import render_check_png
+
+        render_check_png(out_path, doc, mdp=mdp, trajs=trajs, source=result)
+        _say(f"wrote {out_path}")
+        return
     render_result_png(out_path, doc, source=result, mdp=mdp, zone_map=zone_map, trajs=trajs)
     _say(f"wrote {out_path}")
 
