@@ -95,6 +95,13 @@ def study(
                      "in study.csv (*_pooled), DIR/population.json and population.png, a held-out "
                      "comparison; with --group-by, each group its own (μ, σ)."),
     ] = False,
+    check: Annotated[
+        str,
+        typer.Option("--check", help="Low expertise or missing features? off, fast (posterior predictive "
+                     "checks, the default) or full (also a per-state reward fitted with β, compared on "
+                     "held-out episodes): each result.json's diagnostics.misspecification, a warning when "
+                     "the features do not explain a participant's behaviour."),
+    ] = "fast",
     models: Annotated[
         str | None,
         typer.Option(
@@ -137,7 +144,10 @@ def study(
         share=share,
         expertise=expertise,
     )
-    report = ReportOptions(figures=figures, group_by=group_by, population=population)
+    from ..inference.misspecification import check_level
+
+    report = ReportOptions(figures=figures, group_by=group_by, population=population,
+                           check=check_level(check))
     _print_outcome(_run(path, out, opts, workers, scheduler, report), out)
 
 

@@ -100,7 +100,8 @@ def verdict(n_episodes: int, n_actions: int, predictive: dict | None,
     """The verdict and its reason in one line (see the module docstring)."""
     failed = predictive["failed"] if predictive else []
     if failed:
-        return UNEXPLAINED, (f"the demonstrations' {', '.join(failed)} lie outside what the posterior "
+        verb = "lies" if len(failed) == 1 else "lie"
+        return UNEXPLAINED, (f"the demonstrations' {', '.join(failed)} {verb} outside what the posterior "
                              f"predicts (Holm, family-wise level {ALPHA:g})")
     if competitor is not None:
         g, se, ratio = competitor["gain"], competitor["gain_se"], competitor["beta_ratio"]

@@ -95,6 +95,7 @@ class ReportOptions:
     figures: str = "all"  # --figures all|none|N
     group_by: str | None = None  # --group-by COLUMN
     population: bool = False  # --population: the hierarchical model over the participants
+    check: str = "fast"  # --check off|fast|full: diagnostics.misspecification of each participant
 
 
 class StudyFailed(Exception):
@@ -771,7 +772,8 @@ def _joined(values: list[str]) -> str:
 
 
 def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, opts: StudyOptions,
-                        evidence, grid) -> tuple[dict[str, Any], list[dict[str, Any]], list, tuple]:
+                        evidence, grid,
+                        check: str = "off") -> tuple[dict[str, Any], list[dict[str, Any]], list, tuple]:
     """Write ``pdir/ID/result.json``; return the participant's ``study.csv`` row, their ``tasks.csv``
     rows, the modes of their posterior and their figure's job."""
     mine = manifest.tasks_of(pid)
@@ -799,6 +801,7 @@ def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, 
     doc["filled_gaps"], doc["snapped_samples"] = filled, snapped
     if evidence is not None:
         doc["model_evidence"] = finite_or_null(evidence[pid])
+    _misspecification(doc, mine, opts, check, d / "result.json")
     doc = finite_or_null(doc)
     write_json(d / "result.json", doc)
     groups = est["groups"]
@@ -848,7 +851,7 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
     study_rows, task_rows, modes, warnings, jobs = [], [], {}, {}, []
     for pid in manifest.participants:
         row, rows, modes[pid], job = _participant_report(pdir, manifest, pid, estimates[pid], optimal, opts,
-                                                         evidence, grid)
+                                                         evidence, grid, report.check)
         warnings[pid] = job[3].get("diagnostics", {}).get("warnings") or []
         if population is not None:
             row.update(population["participants"][pid])
@@ -903,3 +906,34 @@ def _draw(out: Path, jobs, chosen: list[str], rows, names, manifest: Manifest, w
     if todo:
         draw_figures(todo, workers=workers, scheduler=scheduler, on_progress=on_figure)
     render_study_png(out / "study.png", rows, list(names), title=f"Study {manifest.path.name}")
+
+
+def _misspecification(doc: dict[str, Any], mine: list[StudyTask], opts: StudyOptions, check: str,
+                      path: Path) -> None:
+    """``diagnostics.misspecification`` of a participant (:mod:`..inference.misspecification`) over
+    their tasks, from their posterior: the discrete set's hypotheses, the draws, or MAP's point."""
+    from ..inference.misspecification import add_to_result
+    from ..results import load_samples
+
+    if check == "off":
+        return
+    doc["settings"]["check"] = check
+    if opts.share != "both":
+        doc.setdefault("diagnostics", {}).setdefault("unavailable", {})["misspecification"] = (
+            "the checks simulate one θ for all tasks; --share beta has a θ per task")
+        return
+    if doc.get("hypotheses"):
+        hs = doc["hypotheses"]
+        posterior = {"theta": np.array([h["theta"] for h in hs]), "beta": np.array([h["beta"] for h in hs]),
+                     "weights": np.array([h["probability"] for h in hs])}
+    elif doc.get("samples") is not None:
+        _, beta, theta = load_samples(doc, path)
+        posterior = {"theta": theta, "beta": beta, "weights": None}
+    else:
+        posterior = {"theta": np.array([doc["map"]["theta"]]), "beta": np.array([doc["map"]["beta"]]),
+                     "weights": None, "draws_note": "the MAP point (no posterior draws): a plug-in check"}
+    from .study import participant_seed
+
+    seed = participant_seed(str(doc.get("participant", "")))
+    add_to_result(doc, [(t.mdp, t.trajectories) for t in mine], posterior, check=check, model=opts.model,
+                  seed=seed)
