@@ -46,8 +46,8 @@ import math
 import warnings as _warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import partial
-from typing import Any
+from functools import cached_property, partial
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -101,21 +101,49 @@ class PopulationData:
     def n_groups(self) -> int:
         return len(self.group_names)
 
-    def arrays(self) -> tuple[jnp.ndarray, ...]:
-        """The JAX arguments of :func:`log_marginals`: ℓ, log allowed, one-hot groups, log β, log θ̃,
-        and ℓ scaled by rows: ``exp(ℓ_ijk − M_ij)`` and ``M_ij = max_k ℓ_ijk``
-        (see :func:`_log_marginals`)."""
+    def arrays(self) -> _Arrays:
+        """The JAX arguments of :func:`log_marginals` (:class:`_Arrays`; computed once)."""
+        return self._arrays
+
+    @cached_property
+    def _arrays(self) -> _Arrays:
         hyp = self.hypotheses
         with np.errstate(divide="ignore", invalid="ignore"):
-            log_allowed = np.where(self.allowed, 0.0, -np.inf)
+            masks, mask_index = np.unique(self.allowed, axis=0, return_inverse=True)
+            log_allowed = np.where(masks, 0.0, -np.inf)
             row_max = self.log_lik.max(axis=2)
             scaled = np.exp(self.log_lik - np.where(np.isfinite(row_max), row_max, 0.0)[:, :, None])
         one_hot = np.eye(self.n_groups)[self.groups]
         K = hyp.thetas.shape[1]
         log_tt = np.log((1 - THETA_SHRINK) * hyp.thetas + THETA_SHRINK / K)
-        return (jnp.asarray(self.log_lik), jnp.asarray(log_allowed), jnp.asarray(one_hot),
-                jnp.asarray(np.log(hyp.betas)), jnp.asarray(log_tt), jnp.asarray(scaled),
-                jnp.asarray(row_max))
+        return _Arrays(jnp.asarray(self.log_lik), jnp.asarray(log_allowed),
+                       jnp.asarray(np.asarray(mask_index).reshape(-1)), jnp.asarray(one_hot),
+                       jnp.asarray(np.log(hyp.betas)), jnp.asarray(log_tt), jnp.asarray(scaled),
+                       jnp.asarray(row_max))
+
+
+class _Arrays(NamedTuple):
+    """The data of :func:`_log_marginals` (a pytree: the compiled programs' argument).
+
+    Attributes:
+        log_lik: ``[N, nT, nB]`` ℓ.
+        log_allowed: ``[U, nT]`` 0 or −inf: the distinct sets of allowed θ's (usually one or two).
+        mask_index: ``[N]`` which of them each participant has.
+        one_hot: ``[N, G]`` each participant's group.
+        log_b: ``[nB]`` log β of the grid.
+        log_tt: ``[nT, K]`` log θ̃.
+        scaled: ``[N, nT, nB]`` ``exp(ℓ_ijk − M_ij)``.
+        row_max: ``[N, nT]`` ``M_ij = max_k ℓ_ijk``.
+    """
+
+    log_lik: jnp.ndarray
+    log_allowed: jnp.ndarray
+    mask_index: jnp.ndarray
+    one_hot: jnp.ndarray
+    log_b: jnp.ndarray
+    log_tt: jnp.ndarray
+    scaled: jnp.ndarray
+    row_max: jnp.ndarray
 
 
 def population_data(log_lik: Sequence[np.ndarray], hyp: HypothesisSet, *,
@@ -182,42 +210,47 @@ class Hyperparameters:
                 "alpha": self.alpha, "m": self.m.tolist()}
 
 
-def _log_priors(arrays, mu, sigma, alpha, m):
-    """``([N, n_beta], [N, n_theta])``: each participant's log P(β_k) and log P(θ_j) (normalised)."""
-    _, log_allowed, one_hot, log_b, log_tt = arrays[:5]
-    lpb = -0.5 * ((log_b[None, :] - mu[:, None]) / sigma[:, None]) ** 2  # [G, nB]
+def _log_priors(arrays: _Arrays, mu, sigma, alpha, m):
+    """``([N, n_beta], [N, n_theta])``: each participant's log P(β_k) and log P(θ_j) (normalised;
+    the θ prior once per distinct set of allowed θ's)."""
+    lpb = -0.5 * ((arrays.log_b[None, :] - mu[:, None]) / sigma[:, None]) ** 2  # [G, nB]
     lpb = lpb - jlse(lpb, axis=1, keepdims=True)
-    lpt = log_tt @ (alpha * m - 1.0)  # [nT]
-    lpt = lpt[None, :] + log_allowed  # [N, nT]
+    lpt = (arrays.log_tt @ (alpha * m - 1.0))[None, :] + arrays.log_allowed  # [U, nT]
     lpt = lpt - jlse(lpt, axis=1, keepdims=True)
-    return one_hot @ lpb, lpt
+    return arrays.one_hot @ lpb, lpt[arrays.mask_index]
 
 
-#: Where Σ_k P(β_k) exp(ℓ_ijk − M_ij) is below this, it counts as this (see :func:`_log_marginals`).
+#: Where a participant's scaled sum (see :func:`_log_marginals`) is below this, it counts as this.
 ROW_FLOOR = 1e-300
 
 
 def _log_marginals(arrays, mu, sigma, alpha, m):
     """``[N]`` log p(Ξ_i | ψ) (JAX-traceable).
 
-    The sum over β is a product with the row-scaled likelihood, ``log Σ_k P(β_k) exp ℓ_ijk = M_ij +
-    log Σ_k P(β_k) exp(ℓ_ijk − M_ij)`` (one exponential per β cell and per θ row instead of one per
-    grid cell: the fit is several times faster). It is exact unless that sum is below
-    :data:`ROW_FLOOR` (the population puts all its β mass where θ_j explains the participant e^−690
-    worse than at θ_j's best β), where it counts as the floor: a θ row that poor under such a ψ is
-    negligible beside any row the posterior weighs, and ψ's there lie e^−690 or more below the
-    posterior's mode (:func:`_log_marginals_lse` is the exact sum, for checks)."""
+    With the row-scaled likelihood ``s_ij = Σ_k P(β_k) exp(ℓ_ijk − M_ij)`` (``M_ij = max_k ℓ_ijk``,
+    so ``s_ij ≤ 1``) and ``z_ij = M_ij + log P(θ_j)``, ``A_i = max_j z_ij``:
+
+        log p(Ξ_i | ψ) = A_i + log Σ_j s_ij exp(z_ij − A_i),
+
+    one product with the grid and one exponential per θ row, no logarithm per row (the
+    transcendental functions, not the product, are most of a gradient's cost on a CPU). Every
+    term is at most 1, so nothing overflows; the value is exact to double precision unless the
+    sum falls below :data:`ROW_FLOOR` (the population puts its β mass where even the participant's
+    most probable θ row explains them e^−690 worse than at that row's best β), where it counts as
+    the floor: such a ψ lies e^−690 or more below where the participant's likelihood is, and no
+    sampler or optimiser goes there (:func:`_log_marginals_lse` is the exact sum, for checks)."""
     lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
-    scaled, row_max = arrays[5], arrays[6]
-    s = jnp.einsum("ijk,ik->ij", scaled, jnp.exp(lpb))
-    inner = row_max + jnp.log(jnp.maximum(s, ROW_FLOOR))  # [N, nT]
-    return jlse(inner + lpt, axis=1)
+    s = jnp.einsum("ijk,ik->ij", arrays.scaled, jnp.exp(lpb))
+    z = arrays.row_max + lpt  # [N, nT]; −inf where the row is not allowed or has probability 0
+    a = jax.lax.stop_gradient(jnp.max(z, axis=1, keepdims=True))  # the value does not depend on A_i
+    total = jnp.sum(s * jnp.exp(z - a), axis=1)
+    return a[:, 0] + jnp.log(jnp.maximum(total, ROW_FLOOR))
 
 
 def _log_marginals_lse(arrays, mu, sigma, alpha, m):
     """``[N]`` log p(Ξ_i | ψ) as one log-sum-exp over every cell (exact; for checks)."""
     lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
-    inner = jlse(arrays[0] + lpb[:, None, :], axis=2)  # [N, nT]: Σ_k P(β_k) P(Ξ_i | θ_j, β_k)
+    inner = jlse(arrays.log_lik + lpb[:, None, :], axis=2)  # [N, nT]: Σ_k P(β_k) P(Ξ_i | θ_j, β_k)
     return jlse(inner + lpt, axis=1)
 
 
@@ -524,6 +557,42 @@ def sample_population(data: PopulationData, *, num_warmup: int = 500, num_sample
 
 
 # ----------------------------------------------------------------------------- posteriors
+#: At most this many grid rows × draws at once (``[draws, N, n_theta]``) in the draws' loops.
+DRAW_BLOCK = 20_000_000
+
+
+def _stack(psis: Sequence[Hyperparameters]) -> tuple[jnp.ndarray, ...]:
+    return (jnp.asarray(np.stack([p.mu for p in psis])), jnp.asarray(np.stack([p.sigma for p in psis])),
+            jnp.asarray([p.alpha for p in psis]), jnp.asarray(np.stack([p.m for p in psis])))
+
+
+def _blocks(n_draws: int, rows: int):
+    step = max(1, DRAW_BLOCK // max(rows, 1))
+    return [slice(s, min(s + step, n_draws)) for s in range(0, n_draws, step)]
+
+
+@jax.jit
+def _shrunk_block(arrays: _Arrays, mu, sigma, alpha, m):
+    """Σ over a block of draws s of P_s(θ_j, β_k | Ξ_i), ``[N, nT, nB]``.
+
+    Per draw the posterior is ``exp(ℓ_ijk + log P_s(θ_j) + log P_s(β_k) − log p_s(Ξ_i))`` =
+    ``scaled_ijk · a_sij · b_sik`` with ``a_sij = exp(M_ij + log P_s(θ_j) − log p_s(Ξ_i))`` and
+    ``b_sik = P_s(β_k)``, so the sum over draws is one batched matrix product ``aᵀ b`` per
+    participant instead of an exponential per grid cell and draw. ``a`` is divided by the draw's
+    total ``Σ_j a_sij s_sij`` (1 but where :data:`ROW_FLOOR` was hit), so each draw's posterior sums
+    to 1; every exponent is at most ~690 (:func:`_log_marginals`), so nothing overflows."""
+    def parts(mu, sigma, alpha, m):
+        lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
+        b = jnp.exp(lpb)  # [N, nB]
+        s = jnp.einsum("ijk,ik->ij", arrays.scaled, b)
+        ea = arrays.row_max + lpt - _log_marginals(arrays, mu, sigma, alpha, m)[:, None]
+        a = jnp.exp(ea)
+        return a / jnp.sum(a * s, axis=1, keepdims=True), b
+
+    a, b = jax.vmap(parts)(mu, sigma, alpha, m)  # [S, N, nT], [S, N, nB]
+    return arrays.scaled * jnp.einsum("sij,sik->ijk", a, b)
+
+
 def shrunk_posteriors(data: PopulationData,
                       psis: Sequence[Hyperparameters] | Hyperparameters) -> np.ndarray:
     """``[N, n_theta, n_beta]`` each participant's posterior over the grid under the population,
@@ -531,25 +600,14 @@ def shrunk_posteriors(data: PopulationData,
     psis = [psis] if isinstance(psis, Hyperparameters) else list(psis)
     if not psis:
         raise InputError("need at least one set of hyperparameters")
+    for psi in psis:
+        _check_psi(data, psi)
     arrays = data.arrays()
-    mu = jnp.asarray(np.stack([p.mu for p in psis]))
-    sigma = jnp.asarray(np.stack([p.sigma for p in psis]))
-    alpha = jnp.asarray([p.alpha for p in psis])
-    m = jnp.asarray(np.stack([p.m for p in psis]))
-
-    @jax.jit
-    def one(mu, sigma, alpha, m):
-        lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
-        lp = arrays[0] + lpt[:, :, None] + lpb[:, None, :]
-        return jnp.exp(lp - jlse(lp, axis=(1, 2), keepdims=True))
-
-    total = jnp.zeros(data.log_lik.shape)
-    chunk = 64
-    batched = jax.jit(jax.vmap(one))
-    for s in range(0, len(psis), chunk):
-        part = batched(mu[s:s + chunk], sigma[s:s + chunk], alpha[s:s + chunk], m[s:s + chunk])
-        total = total + part.sum(0)
-    return np.asarray(total) / len(psis)
+    stacked = _stack(psis)
+    total = np.zeros(data.log_lik.shape)
+    for block in _blocks(len(psis), data.n * data.hypotheses.n_theta):
+        total += np.asarray(_shrunk_block(arrays, *(x[block] for x in stacked)))
+    return total / len(psis)
 
 
 def independent_posteriors(data: PopulationData) -> np.ndarray:
@@ -561,10 +619,25 @@ def independent_posteriors(data: PopulationData) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- held-out
+def _lse(x: np.ndarray) -> float:
+    """log Σ exp x of a 1-d array (scipy's logsumexp costs ~1 ms a call in its checks)."""
+    top = x.max()
+    if not np.isfinite(top):
+        return float(top)
+    return float(top + np.log(np.exp(x - top).sum()))
+
+
 def _predict(train: np.ndarray, unit: np.ndarray, log_prior: np.ndarray) -> float:
     """log P(unit | train) = log Σ_h P(h | train) P(unit | h) under ``log_prior`` (arrays over h)."""
     with np.errstate(invalid="ignore"):
-        return float(logsumexp(train + unit + log_prior) - logsumexp(train + log_prior))
+        return _lse(train + unit + log_prior) - _lse(train + log_prior)
+
+
+@jax.jit
+def _participant_log_prior(arrays: _Arrays, i, mu, sigma, alpha, m):
+    """``[H]`` participant i's log prior over the grid under ψ (θ-major)."""
+    lpb, lpt = _log_priors(arrays, mu, sigma, alpha, m)
+    return (lpt[i][:, None] + lpb[i][None, :]).reshape(-1)
 
 
 def heldout_comparison(data: PopulationData, units: Sequence[Sequence[tuple[np.ndarray, int]]], *,
@@ -590,6 +663,7 @@ def heldout_comparison(data: PopulationData, units: Sequence[Sequence[tuple[np.n
     if len(units) != data.n:
         raise InputError(f"need the held-out units of every participant ({data.n}), got {len(units)}")
     fit = fit or type2_ml(data, n_starts=n_starts)
+    arrays = data.arrays()
     ll = data.log_lik.reshape(data.n, -1)
     with np.errstate(divide="ignore"):
         flat_allowed = np.repeat(np.where(data.allowed, 0.0, -np.inf), data.hypotheses.n_beta, axis=1)
@@ -607,7 +681,8 @@ def heldout_comparison(data: PopulationData, units: Sequence[Sequence[tuple[np.n
         # move by far less than the differences they are compared on
         psi = (type2_ml(data, n_starts=1, weights=w, start=fit.psi, ftol=1e-10, gtol=1e-6).psi
                if data.n > 1 else fit.psi)
-        lp_pop = population_log_prior(data, psi)[i].reshape(-1)
+        lp_pop = np.asarray(_participant_log_prior(arrays, i, jnp.asarray(psi.mu), jnp.asarray(psi.sigma),
+                                                   psi.alpha, jnp.asarray(psi.m)))
         others = total_ll - ll[i]
         score = dict.fromkeys(sums, 0.0)
         actions = 0
