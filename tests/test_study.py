@@ -227,6 +227,7 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
         "heldout_actions",
         "heldout_log_likelihood_per_action",
         "warnings",
+        "misspecification",
     ]
     p1, p3 = rows[0], rows[2]
     assert (p1["path_length"], p1["path_cost"], p1["road_cells"], p1["direction_changes"]) == (

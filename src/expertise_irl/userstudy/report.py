@@ -93,6 +93,9 @@ _SUMMARY_COLUMNS = (
 #: β summaries of ``study.csv`` (``beta_hat`` stays the posterior mean).
 BETA_SUMMARY_COLUMNS = ("beta_mean", "beta_median", "beta_geomean", "beta_q05", "beta_q95")
 HELDOUT_COLUMNS = ("heldout_split", "heldout_actions", "heldout_log_likelihood_per_action")
+#: ``--check``'s verdict on each participant (``diagnostics.misspecification.verdict`` of their result;
+#: empty with ``--check off`` or ``--share beta``).
+MISSPECIFICATION_COLUMN = "misspecification"
 
 
 def _world_columns(feature_names: Sequence[str]) -> list[str]:
@@ -105,7 +108,7 @@ def study_columns(feature_names: Sequence[str], models: Sequence[str] = (),
                   extra: Sequence[str] = ()) -> list[str]:
     cols = ["participant", *extra, "tasks", "episodes", "beta_hat", *(f"theta_{f}" for f in feature_names),
             *_SUMMARY_COLUMNS, *BETA_SUMMARY_COLUMNS, "share", *_world_columns(feature_names),
-            *HELDOUT_COLUMNS, "warnings"]
+            *HELDOUT_COLUMNS, "warnings", MISSPECIFICATION_COLUMN]
     if models:
         cols += [f"log_evidence_{m}" for m in models] + ["best_model"]
     return cols
@@ -159,6 +162,32 @@ def changing_markdown(rows: Sequence[dict[str, Any]]) -> str:
         lines.append(f"| {r['participant']} | {_num(r['changing_log_bf'], 3)} | {_num(r['p_changing'])} | "
                      f"{_num(r['trend_p_falls'], 2)} | {r['trend_log_ratio']:+.2f} |")
     return "\n".join(lines) + "\n\n"
+
+
+def misspecification_markdown(rows: Sequence[dict[str, Any]], check: str, share: str = "both") -> str:
+    """``--check fast|full``: how many participants got each verdict, who the features do not explain,
+    and what that means for their β̂ (empty with ``--check off``)."""
+    from ..inference.misspecification import UNEXPLAINED, VERDICTS
+
+    if check == "off":
+        return ""
+    lines = [f"## Low expertise or missing features? (--check {check})", ""]
+    if share != "both":
+        lines += ["Not available with --share beta: the checks simulate one θ for all of a participant's "
+                  "tasks.", "", ""]
+        return "\n".join(lines)
+    by: dict[str, list[str]] = {v: [] for v in VERDICTS}
+    for r in rows:
+        by.setdefault(r.get(MISSPECIFICATION_COLUMN) or "not checked", []).append(str(r["participant"]))
+    lines += ["| verdict | participants | who |", "|---|---|---|"]
+    lines += [f"| {v} | {len(ps)} | {', '.join(ps)} |" for v, ps in by.items() if ps or v in VERDICTS]
+    lines += ["", f"\"{UNEXPLAINED}\": the demonstrations have structure that the features do not describe, "
+              "so the model reads it as noise and β̂ is an upper bound on the person's noise, not a measure "
+              "of it. Each participant's reason and statistics are in their result.json "
+              "(diagnostics.misspecification), drawn by `plot participants/ID/result.json --check --out "
+              "check.png`; the rules are in "
+              "docs/misspecification.md.", "", ""]
+    return "\n".join(lines)
 
 
 def _has(r: dict[str, Any], c: str) -> bool:

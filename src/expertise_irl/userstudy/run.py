@@ -53,6 +53,7 @@ from .report import (
     CHANGING_COLUMNS,
     GROUP_COLUMNS,
     changing_markdown,
+    misspecification_markdown,
     posterior_modes,
     study_columns,
     study_markdown,
@@ -821,6 +822,7 @@ def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, 
         "heldout_split": held["split"], "heldout_actions": held["actions"],
         "heldout_log_likelihood_per_action": _f(held["per_action"]),
         "warnings": len(doc.get("diagnostics", {}).get("warnings") or []),
+        "misspecification": (doc.get("diagnostics", {}).get("misspecification") or {}).get("verdict", ""),
         **changing_columns(doc),
     }
     job = (d / f"{pid}.png", pid, [p.panel for p in parts], doc)
@@ -869,7 +871,7 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
               + (list(CHANGING_COLUMNS) if opts.expertise == "changing" else []) + pop_columns)
     write_csv(out / "tasks.csv", task_rows, task_columns(feats, extra=extra))
     any_hyp = next(iter(hyps.values()), None)
-    sections = ""
+    sections = misspecification_markdown(study_rows, report.check, opts.share)
     if opts.expertise == "changing":
         sections += changing_markdown(study_rows)
     if population is not None:
