@@ -266,10 +266,11 @@ def infer(
     doc = document(run, feature_names=mdp.feature_names, settings=settings,
                    data={"episodes": trajs.n_episodes, "actions": len(trajs)}, samples_path=samples_path)
     doc["settings"]["check"] = check
+    t0 = time.perf_counter()
     add_to_result(doc, [(mdp, trajs)], posterior_of_run(run, mdp), check=check, model=run.settings["model"],
                   seed=seed)
     write_json(out_path, doc)
-    _report_result(doc, out_path, len(trajs))
+    _report_result(doc, out_path, len(trajs), check_s=time.perf_counter() - t0)
 
 
 def _source(map_spec, mdp_path, zone_map, demos) -> dict:
@@ -281,8 +282,9 @@ def _source(map_spec, mdp_path, zone_map, demos) -> dict:
             "demos": str(demos), "demos_digest": file_digest(demos)}
 
 
-def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
-    """The estimate, its interval or impossible hypotheses, the warnings and what was written."""
+def _report_result(doc: dict, out_path: Path, n_actions: int, check_s: float | None = None) -> None:
+    """The estimate, its interval or impossible hypotheses, the misspecification verdict, the warnings
+    and what was written (``check_s``: the seconds the checks took, beside the inference's)."""
     names = doc["feature_names"]
     theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(names, doc["theta_hat"], strict=True))
     _say(f"β̂ = {doc['beta_hat']:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
@@ -304,11 +306,15 @@ def _report_result(doc: dict, out_path: Path, n_actions: int) -> None:
         else:
             _say(f"learning curve: log β_e = log β_0 + λ·{tr['g']}, β̂_0 = {tr['beta0']:.3g}, λ̂ = "
                  f"{tr['slope']:.3g} (β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g})")
+    mis = doc["diagnostics"].get("misspecification")
+    if mis:
+        _say(f"check ({mis['check']}): {mis['verdict']} ({mis['reason']})")
     for w in doc["diagnostics"].get("warnings", []):
         _warn(w)
     extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
     what = f"{n_hypotheses} hypotheses" if doc["method"] == "discrete" else doc["method"]
-    _say(f"wrote {out_path}{extra} ({what}, {plural(n_actions, 'action')}, {doc['run_time_s']:.1f} s)")
+    took = f"{doc['run_time_s']:.1f} s" + (f", checks {check_s:.1f} s" if mis and check_s is not None else "")
+    _say(f"wrote {out_path}{extra} ({what}, {plural(n_actions, 'action')}, {took})")
 
 
 def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:

@@ -2,10 +2,10 @@
 
 Top: one panel per predictive statistic, the histogram of its replicated values (the posterior
 predictive distribution) with the demonstrations' value as a vertical line and the p-value in the
-title (red when Holm's rule rejects it). Bottom (with ``--check full`` results and a map): the
-richer reward's departure from θ̂·φ, r(s) for entering each state, on the grid (blue: the person
-is drawn to it beyond the features, red: kept away), the demonstrations over it and the largest
-departures circled.
+title (red when Holm's rule rejects it; the figure's title says so). Bottom (with ``--check full``
+results and a map): the richer reward's departure from θ̂·φ, r(s) for entering each state, on the
+grid (blue: the person is drawn to it beyond the features, red: kept away), the demonstrations over
+it and the largest departures circled.
 """
 
 from __future__ import annotations
@@ -28,10 +28,13 @@ def check_figure(doc: dict[str, Any], *, mdp: TabularMDP | None = None, trajs: T
     """The :class:`~matplotlib.figure.Figure` of ``doc``'s ``diagnostics.misspecification``."""
     from matplotlib.figure import Figure
 
-    mis = (doc.get("diagnostics") or {}).get("misspecification")
+    diag = doc.get("diagnostics") or {}
+    mis = diag.get("misspecification")
     if not mis:
-        raise InputError(f"{source}: the result has no diagnostics.misspecification (run infer with "
-                         "--check fast or full)")
+        why = (diag.get("unavailable") or {}).get("misspecification")
+        raise InputError(f"{source}: the result has no diagnostics.misspecification ("
+                         + (why if why else "infer and study write it with --check fast or full, the default")
+                         + ")")
     pred = mis.get("predictive") or {}
     stats = pred.get("statistics") or {}
     comp = mis.get("competitor")
@@ -61,6 +64,10 @@ def check_figure(doc: dict[str, Any], *, mdp: TabularMDP | None = None, trajs: T
     if comp is not None:
         title += (f"\nheld-out gain of a per-state reward {comp['gain']:.3g} ± {comp['gain_se']:.2g} "
                   f"nats/action; β features {comp['beta_features']:.3g}, per-state {comp['beta_richer']:.3g}")
+    if stats:
+        alpha = (mis.get("thresholds") or {}).get("alpha", 0.05)
+        title += (f"\nbars: {pred.get('replicates', 'the')} data sets simulated from the posterior; "
+                  f"line: the demonstrations (red: rejected, Holm at family-wise level {alpha:g})")
     fig.suptitle(title, fontsize=10, wrap=True)
     return fig
 
