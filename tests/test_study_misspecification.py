@@ -88,3 +88,12 @@ def test_study_csv_and_md_carry_each_participants_verdict(study):
               "--workers", "1", "--check", "off"))
     assert {r["misspecification"] for r in read_csv(off / "study.csv")} == {""}
     assert "Low expertise or missing features?" not in (off / "study.md").read_text()
+
+
+def test_the_section_without_checks():
+    from expertise_irl.userstudy.report import misspecification_markdown
+
+    rows = [{"participant": "P1", "misspecification": ""}]
+    assert misspecification_markdown(rows, "off") == ""
+    beta = misspecification_markdown(rows, "fast", share="beta")
+    assert beta.startswith(SECTION) and "Not available with --share beta" in beta and "| verdict" not in beta
