@@ -66,6 +66,7 @@ def test_study_csv_and_md_carry_each_participants_verdict(study):
     res = invoke("study", study / "manifest.csv", "--out", out, "--betas", BETAS, "--figures", "none",
                  "--workers", "1")
     ok(res)
+    assert f"{UNEXPLAINED}: 1 (A)" in res.stdout  # the summary line of the checks
     rows = {r["participant"]: r for r in read_csv(out / "study.csv")}
     cols = list(next(iter(rows.values())))
     assert cols[cols.index("warnings") + 1] == "misspecification"

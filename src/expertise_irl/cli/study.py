@@ -209,6 +209,13 @@ def _print_outcome(outcome, out: Path) -> None:
     for pid, ev in (outcome.evidence or {}).items():
         bfs = ", ".join(f"{f['model']} {f['log_bayes_factor']:.2f}" for f in ev["models"])
         _say(f"{pid}: best model {ev['best'] or 'n/a'} (log Bayes factors vs best: {bfs})")
+    verdicts: dict[str, list[str]] = {}
+    for r in outcome.participants:
+        if r.get("misspecification"):
+            verdicts.setdefault(r["misspecification"], []).append(str(r["participant"]))
+    if verdicts:
+        _say("checks: " + "; ".join(f"{v}: {len(ps)}" + (f" ({', '.join(ps)})" if len(ps) <= 5 else "")
+                                    for v, ps in verdicts.items()) + f" (see {out}/study.md)")
     n_warn = sum(r["warnings"] for r in outcome.participants)
     if n_warn:
         _warn(f"{n_warn} warning(s) for {sum(1 for r in outcome.participants if r['warnings'])} "
