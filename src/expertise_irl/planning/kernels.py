@@ -26,6 +26,7 @@ plain sweeps' whatever happened before.
 
 from __future__ import annotations
 
+import os
 import weakref
 from functools import partial
 from typing import NamedTuple
@@ -154,17 +155,45 @@ def prepared(mdp: TabularMDP, dtype: str) -> Prepared:
     return per_mdp[dtype]
 
 
+#: Share of the memory available when a solve starts that its pool of lanes may take.
+MEMORY_SHARE = 0.25
+#: Copies of one lane's values the pool holds at once (values, the over-relaxation's saved values,
+#: the jump's values and successors, the backups' temporaries), for sizing the pool from memory.
+LANE_COPIES = 8
+
+
+def available_memory() -> int:
+    """Bytes of memory available now: ``MemAvailable`` of /proc/meminfo where there is one, else
+    the free physical pages, else 8 GiB."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
+
+
 def default_chunk_size(mdp: TabularMDP, dtype=np.float64, budget_bytes: int = DEFAULT_CHUNK_BYTES,
-                       lanes: int = LANES) -> int:
+                       lanes: int = LANES, memory: int | None = None) -> int:
     """Hypotheses in flight at once (a multiple of the lane width ``lanes``).
 
     Sized so the lanes' values (``[S, chunk]``) stay near ``budget_bytes``: 144 on a 30×30
     map, fewer on large maps, never fewer than 32 hypotheses or more than 256 (rounded down
     to whole lane groups). Measured on 2 cores with 8 lanes: 128-144 lanes are fastest on
-    883 states, 32 on 4,546 states.
+    883 states, 32 on 4,546 states. On a map so large that 32 lanes' :data:`LANE_COPIES` copies
+    of their values would take more than :data:`MEMORY_SHARE` of ``memory`` (default: what
+    :func:`available_memory` finds now), the pool shrinks to fit, down to one lane group.
     """
     per_hypothesis = mdp.n_states * np.dtype(dtype).itemsize  # rewards are recomputed per sweep
     n = min(256, max(32, budget_bytes // per_hypothesis))
+    if memory is None:
+        memory = available_memory()
+    n = min(n, int(MEMORY_SHARE * memory) // (LANE_COPIES * per_hypothesis))
     return int(lanes * max(1, n // lanes))
 
 
@@ -368,3 +397,149 @@ def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str
     dtype = prep.features.dtype
     return _final_backup(prep, _to_lanes(jnp.asarray(weights, dtype), groups),
                          _to_lanes(jnp.asarray(v, dtype), groups), jnp.asarray(gamma, dtype), model)
+
+
+# ----------------------------------------------------------------------------- path jumps
+#: Plain sweeps between two jumps of :func:`jump_start`.
+JUMP_SWEEPS = 2
+#: Most jumps one hypothesis makes in :func:`jump_start`.
+JUMP_MAX = 60
+#: Jumps every hypothesis makes before it must show progress (the first jump often raises the change).
+JUMP_GRACE = 4
+#: A hypothesis keeps jumping while its change falls below this share of its change two jumps earlier.
+JUMP_PROGRESS = 0.9
+
+
+def doubling_steps(gamma: float) -> int:
+    """Doubling steps of a jump: enough that γ^(2^steps) <= 1e-20 (far below any tolerance)."""
+    import math
+
+    return max(1, math.ceil(math.log2(math.log(1e-20) / math.log(gamma))))
+
+
+def _jump(prep: Prepared, w, v, gamma, model: str, steps: int):
+    """One lane group's jump: ``(v', change [L])``.
+
+    From values ``v [rows, L]``: the backup ``T v`` (both blocks from ``v``), its largest change
+    ``max |T v − v|`` per lane, each state's greedy successor ``s⁺`` (the action of highest Q),
+    and ``b = T v − γ v[s⁺]``, so ``T v = b + γ v[s⁺]``. Holding ``b`` and ``s⁺`` fixed, the
+    values ``v' = b + γ v'[s⁺]`` — the greedy walk's discounted sum of ``b`` — are computed by
+    path doubling in ``steps`` gathers, which carries values along a whole path or round a whole
+    loop at once, where sweeps move them a few states per sweep and need ~1/(1−γ) rounds of a loop.
+    """
+    nb = prep.features.shape[2]
+    L = v.shape[1]
+    news, succs = [], []
+    for b in (0, 1):
+        new, lp = block_backup(prep, b, w, v, gamma, model)  # [nb, L], [A, nb, L]
+        a = jnp.argmax(lp, axis=0)  # [nb, L]
+        rows = jnp.broadcast_to(prep.next_row[b][:, :, None], (prep.next_row.shape[1], nb, L))
+        news.append(new)
+        succs.append(jnp.take_along_axis(rows, a[None], axis=0)[0])
+    zero = v[2 * nb:]
+    tv = jnp.concatenate([*news, zero], axis=0)
+    succ = jnp.concatenate([*succs, jnp.full((1, L), 2 * nb, succs[0].dtype)], axis=0)
+    change = jnp.max(jnp.abs(tv - v), axis=0)
+    # Flat indices of each lane's successor in [rows * L] (row-major), so every gather is one take.
+    lane = jnp.arange(L, dtype=succ.dtype)
+    flat = succ * L + lane
+    x = tv - gamma * v.reshape(-1).at[flat].get(mode="promise_in_bounds").reshape(v.shape)  # b
+    x = x.at[2 * nb:].set(0.0)  # the zero row: b = 0, and it is its own successor, so it stays 0
+
+    def double(_, c):  # x <- x + γ^(2^i) x[s⁺], s⁺ <- s⁺[s⁺]: paths of twice the length
+        x, flat, fac = c
+        x = x + fac * x.reshape(-1).at[flat].get(mode="promise_in_bounds").reshape(x.shape)
+        return x, flat.reshape(-1).at[flat].get(mode="promise_in_bounds").reshape(flat.shape), fac * fac
+
+    x, _, _ = jax.lax.fori_loop(0, steps, double, (x, flat, gamma))
+    return x, change
+
+
+_jump_groups = jax.vmap(_jump, in_axes=(None, 0, 0, None, None, None))
+
+
+def _jump_impl(prep: Prepared, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str,
+               steps: int):
+    dtype = prep.features.dtype
+    gamma = gamma.astype(dtype)
+    thresh = thresh.astype(dtype)
+    weights = weights.astype(dtype)
+    v0 = v0.astype(dtype)
+    H = weights.shape[0]
+    slots = groups * lanes
+    lane_h = jnp.arange(slots)
+    active = lane_h < H
+    lane_h = jnp.where(active, lane_h, 0)
+    inf = jnp.full(slots, jnp.inf, dtype)
+    init = (
+        _to_lanes(weights[lane_h], groups), _to_lanes(v0[lane_h], groups),  # w, v
+        lane_h, active, jnp.zeros(slots, jnp.int64), jnp.minimum(slots, H),  # lane -> h, busy, jumps, next h
+        _to_lanes(v0[lane_h], groups), inf, inf, inf,  # best values, their change, change 1 and 2 jumps ago
+        jnp.zeros_like(v0), jnp.zeros(H, jnp.int64),  # outputs: values, jumps
+    )
+
+    def cond(c):
+        return jnp.any(c[3])
+
+    def body(c):
+        w, v, lane_h, active, k, next_h, best_v, best_d, d1, d2, out_v, out_k = c
+        v = jax.lax.fori_loop(0, JUMP_SWEEPS, lambda _, v: _sweep_groups(prep, w, v, gamma, model)[0], v)
+        vj, d = _jump_groups(prep, w, v, gamma, model, steps)
+        d = _from_lanes(d)
+        better = active & (d < best_d)
+        best_v = jnp.where(_to_lanes(better, groups)[:, None, :], v, best_v)
+        best_d = jnp.where(better, d, best_d)
+        k = k + active.astype(k.dtype)
+        ok = _from_lanes(jnp.isfinite(vj).all(axis=1))
+        go = ok & (d > thresh) & (k < JUMP_MAX) & ((k < JUMP_GRACE) | (d < JUMP_PROGRESS * d2))
+        fin = active & ~go
+        v = jnp.where(_to_lanes(go, groups)[:, None, :], vj, v)
+        d2, d1 = d1, d
+        # finished lanes hand their best values out and take the next hypothesis
+        where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
+        out_v = out_v.at[where].set(_from_lanes(best_v), mode="drop")
+        out_k = out_k.at[where].set(k, mode="drop")
+        new_h = next_h + jnp.cumsum(fin) - 1
+        take = fin & (new_h < H)
+        src = jnp.clip(new_h, 0, H - 1)
+        take_l = _to_lanes(take, groups)[:, None, :]
+        lane_h = jnp.where(take, new_h, lane_h)
+        w = jnp.where(take_l, _to_lanes(weights[src], groups), w)
+        v = jnp.where(take_l, _to_lanes(v0[src], groups), v)
+        best_v = jnp.where(take_l, v, best_v)
+        best_d, d1, d2 = (jnp.where(take, jnp.inf, x) for x in (best_d, d1, d2))
+        k = jnp.where(take, 0, k)
+        active = jnp.where(fin, take, active)
+        next_h = jnp.minimum(next_h + jnp.sum(fin), H)
+        return w, v, lane_h, active, k, next_h, best_v, best_d, d1, d2, out_v, out_k
+
+    out = jax.lax.while_loop(cond, body, init)
+    return out[10], out[11]
+
+
+_jump_start = jax.jit(_jump_impl, static_argnames=("groups", "lanes", "model", "steps"))
+
+
+def jump_start(prep: Prepared, weights, v0, gamma, thresh, *, groups: int, lanes: int = LANES,
+               model: str = "maxent"):
+    """Starting values for :func:`solve_pool` from greedy path jumps, with a pool of ``groups × lanes``
+    lanes that take the next hypothesis as each one stops (as :func:`solve_pool`'s do).
+
+    Each hypothesis alternates :data:`JUMP_SWEEPS` plain sweeps with a jump (:func:`_jump`: the
+    greedy walk's values by path doubling). Where the greedy walk is nearly the soft-optimal
+    person's (small β: one action carries almost all the probability), a jump takes the values
+    almost to the fixed point, however long the paths and however slowly loops contract; where
+    it is not (large β), the change stops falling and the hypothesis stops jumping after
+    :data:`JUMP_GRACE` jumps. A hypothesis stops when its change ``max |T v − v|`` is at most
+    ``thresh``, has not fallen below :data:`JUMP_PROGRESS` times its change two jumps earlier,
+    after :data:`JUMP_MAX` jumps, or when a jump is not finite. Nothing here certifies anything:
+    the values returned (per hypothesis, the iterate with the smallest change seen) only start
+    :func:`solve_pool`, whose plain sweeps certify the tolerance as from any start.
+
+    Each hypothesis' result depends on its own weights and start only, not on its lane or the
+    other hypotheses in the pool; each costs its own jumps only.
+
+    Returns ``(v [n, rows], jumps [n])`` for ``weights [n, K']`` and ``v0 [n, rows]``.
+    """
+    return _jump_start(prep, weights, v0, gamma, thresh, groups=groups, lanes=lanes, model=model,
+                       steps=doubling_steps(float(gamma)))

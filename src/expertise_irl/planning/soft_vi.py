@@ -17,6 +17,7 @@ memory stays bounded; chunks are padded to one shape so JAX compiles once.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -38,6 +39,20 @@ FLOAT32_START_MIN = 512
 TUNE_MIN = 64
 #: Share of a two-phase solve's time spent in the float32 phase (for progress reports).
 _FLOAT32_SHARE = 0.4
+#: Solver methods: ``sweeps`` (the sweep pool alone, the default) and ``jumps`` (greedy path jumps
+#: first, then the pool; see :func:`solve`).
+METHODS = ("sweeps", "jumps")
+#: Names the method of every solve that does not pass one (``sweeps`` runs the earlier solver
+#: from any command, e.g. ``EXPERTISE_IRL_SOLVER=sweeps expertise-irl infer ...``).
+SOLVER_ENV = "EXPERTISE_IRL_SOLVER"
+
+
+def default_method() -> str:
+    """The method of a solve that passes none: :data:`SOLVER_ENV` if set, else ``"sweeps"``."""
+    method = os.environ.get(SOLVER_ENV, "") or "sweeps"
+    if method not in METHODS:
+        raise InputError(f"{SOLVER_ENV}={method!r}: must be one of {', '.join(METHODS)}")
+    return method
 
 
 class SoftSolution(NamedTuple):
@@ -147,6 +162,7 @@ def solve(
     over_relax: bool = True,
     float32_start: bool = False,
     lanes: int | None = None,
+    method: str | None = None,
 ) -> SoftSolution:
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
@@ -199,11 +215,16 @@ def solve(
     """
     theta, beta = _as_hypotheses(mdp, theta, beta)
     check_model(model)
+    if method is None:
+        method = default_method()
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    jumps = method == "jumps"
     if model == "boltzmann":  # hard values: SOR trials fail and cost sweeps
         return _solve_hard(mdp, theta, beta, tol=tol, max_iter=max_iter, chunk_size=chunk_size,
-                           dtype=dtype, progress=progress, lanes=lanes)
+                           dtype=dtype, progress=progress, lanes=lanes, jumps=jumps)
     opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model,
-            "over_relax": over_relax, "lanes": lanes}
+            "over_relax": over_relax, "lanes": lanes, "jumps": jumps}
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
     return _solve_two_phase(mdp, theta, beta, progress, opts)
@@ -219,7 +240,7 @@ def _solve_hard(mdp, theta, beta, *, progress, **opts) -> SoftSolution:
     np.minimum.at(bmin, inv, beta)
     opts = {**opts, "over_relax": False, "model": "boltzmann"}
     hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, **opts)
-    sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, **opts)
+    sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, **{**opts, "jumps": False})
     return sol._replace(iterations=sol.iterations + hard.iterations[inv])
 
 
@@ -239,7 +260,7 @@ def _solve_two_phase(mdp, theta, beta, progress, opts) -> SoftSolution:
 
 
 def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
-           over_relax, lanes) -> SoftSolution:
+           over_relax, lanes, jumps=False) -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
@@ -277,6 +298,10 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     value = np.empty((H, S))
     log_pi = np.empty((H, S, A))  # every row is written below, -inf included
     iters = np.empty(H, dtype=np.int64)
+    jump_sweeps = np.zeros(H, dtype=np.int64)
+    if jumps and dtype == "float64":
+        scaled0, jump_sweeps = _jump_starts(prep, weights, scaled0, order, consts, slots, groups, lanes,
+                                            model)
     for start in range(0, H, size):
         idx = order[start:start + size]
         n = len(idx)
@@ -292,7 +317,7 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
                 f"(theta={np.round(theta[h], 6).tolist()}, beta={beta[h]:g}) within {max_iter} "
                 f"sweeps: last change {delta[j]:.3g} nats (tol {tol:g}); raise max_iter or tol"
             )
-        iters[idx] = np.asarray(it)[:n]
+        iters[idx] = np.asarray(it)[:n] + jump_sweeps[idx]
         n_final = -(-size // slots) * slots  # the final backup runs on whole lane pools
         v = jnp.concatenate([v, jnp.repeat(v[-1:], n_final - size, 0)]) if n_final > size else v
         w_final = weights[np.concatenate([padded, np.repeat(padded[-1:], n_final - size)])]
@@ -306,3 +331,17 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
         if progress is not None:
             progress(min(start + size, H), H)
     return SoftSolution(value, log_pi, iters, beta.copy(), model)
+
+
+def _jump_starts(prep, weights, scaled0, order, consts, slots, groups, lanes, model):
+    """Start values from greedy path jumps (:func:`.kernels.jump_start`) with a pool of ``slots``
+    lanes, hypotheses handed out in the solve's order, and the sweeps and backups they cost ``[H]``."""
+    gamma, tol = consts[0], consts[1]
+    thresh = tol * (1.0 - gamma) / gamma
+    v, k = kernel.jump_start(prep, jnp.asarray(weights[order]), jnp.asarray(scaled0[order]), gamma, thresh,
+                             groups=groups, lanes=lanes, model=model)
+    out = np.empty_like(scaled0)
+    cost = np.empty(len(order), dtype=np.int64)
+    out[order] = np.asarray(v)
+    cost[order] = (kernel.JUMP_SWEEPS + 1) * np.asarray(k)
+    return out, cost

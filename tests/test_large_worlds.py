@@ -1,0 +1,129 @@
+"""Large worlds: generated floor plans, the solver's greedy path jumps and its memory-sized pool."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from expertise_irl.errors import InputError
+from expertise_irl.hypotheses import resolve_betas, resolve_thetas
+from expertise_irl.mdp import TabularMDP
+from expertise_irl.planning import kernels, soft_vi
+from expertise_irl.planning.soft_vi import solve
+from expertise_irl.worlds.floorplans import LARGE_GAMMA, floor_plan_text, generate_floor_plan
+from expertise_irl.worlds.warehouse import parse_floor_plan
+
+
+def test_generated_floor_plans_are_reproducible_and_reach_the_goal():
+    a, b = generate_floor_plan(40, seed=3), generate_floor_plan(40, seed=3)
+    np.testing.assert_array_equal(a.grid, b.grid)
+    assert not np.array_equal(a.grid, generate_floor_plan(40, seed=4).grid)
+    mdp = a.to_mdp()  # validation: every state reaches a goal
+    assert mdp.gamma == LARGE_GAMMA and mdp.start_states is not None
+    assert 0.95 * 2 * 40 * 40 <= mdp.n_states <= 2 * 40 * 40
+    assert {"x", "#", ">", "<", "^", "v", "G", "S"} <= set(a.grid.ravel().tolist())
+    again = parse_floor_plan(floor_plan_text(a), gamma=a.gamma)  # the text round-trips
+    np.testing.assert_array_equal(again.grid, a.grid)
+    with pytest.raises(InputError, match="size must be a whole number >= 8"):
+        generate_floor_plan(5)
+
+
+def _ring(n: int, gamma: float = 0.99) -> TabularMDP:
+    """n states in a ring (action 0: to the next, feature +1) with an exit to a terminal state
+    from each (action 1, feature -50): a person of small β circles for ever."""
+    nxt = np.full((n + 1, 2), -1)
+    nxt[:n, 0] = (np.arange(n) + 1) % n
+    nxt[:n, 1] = n
+    feats = np.zeros((n + 1, 2, 1))
+    feats[:n, 0, 0] = 1.0 + 0.1 * (np.arange(n) % 3)  # uneven, so values differ round the ring
+    feats[:n, 1, 0] = -50.0
+    return TabularMDP(next_state=nxt, features=feats, terminal=np.arange(n + 1) == n, gamma=gamma)
+
+
+def test_a_jump_sums_a_loop_that_sweeps_need_thousands_of_sweeps_for():
+    n, gamma, beta = 40, 0.99, 0.05
+    mdp = _ring(n, gamma)
+    r = mdp.features[:n, 0, 0] / beta
+    # the greedy walk's values round the ring: v(s) = Σ_k γ^k r(s+k) over the whole future
+    exact = np.array([sum(gamma ** k * r[(s + k) % n] for k in range(n)) for s in range(n)])
+    exact /= 1 - gamma ** n
+    prep = kernels.prepared(mdp, "float64")
+    import jax.numpy as jnp
+
+    w = jnp.asarray(mdp.reward_weights(np.ones((4, 1))) / beta)
+    v, jumps = kernels.jump_start(prep, w, jnp.zeros((4, prep.n_rows)), jnp.asarray(gamma),
+                                  jnp.asarray(1e-10), groups=1, lanes=4)
+    got = np.asarray(v)[0, prep.rows[:n]]
+    # the exit's probability is e^-1000 of the ring's: the soft values are the greedy walk's to
+    # far below 1e-9 relative, so a few jumps land on them
+    assert np.max(np.abs(got - exact) / np.abs(exact)) < 1e-12
+    assert int(jumps[0]) <= 3
+    sweeps = solve(mdp, np.ones((1, 1)), beta, method="sweeps", over_relax=False)
+    jumped = solve(mdp, np.ones((1, 1)), beta, method="jumps", over_relax=False)
+    assert sweeps.iterations[0] > 1000  # γ² per sweep from 1e3 nats to 1e-10
+    assert jumped.iterations[0] <= 40
+    assert np.max(np.abs(jumped.value - sweeps.value)) / beta <= 2e-8
+
+
+@pytest.fixture(scope="module")
+def plan_mdp():
+    return generate_floor_plan(24, seed=1).to_mdp()
+
+
+@pytest.fixture(scope="module")
+def real_set(plan_mdp):
+    th = resolve_thetas("paper-real", plan_mdp.n_features)[::3]
+    be = resolve_betas("paper-real")[[0, 2, 4]]  # 0.1, 1, 10
+    return np.repeat(th, len(be), axis=0), np.tile(be, len(th))
+
+
+def test_jumps_agree_with_sweeps_within_the_tolerance_and_save_sweeps(plan_mdp, real_set):
+    theta, beta = real_set
+    sweeps = solve(plan_mdp, theta, beta, method="sweeps")
+    jumps = solve(plan_mdp, theta, beta, method="jumps")
+    # each is within tol = 1e-8 nats of the fixed point on V/β (certified by the pool's plain
+    # sweep), so within 2e-8 of each other; log-policies within twice that
+    assert np.max(np.abs(jumps.value - sweeps.value) / beta[:, None]) <= 2e-8
+    fin = np.isfinite(sweeps.log_policy)
+    np.testing.assert_array_equal(np.isfinite(jumps.log_policy), fin)
+    assert np.max(np.abs(jumps.log_policy[fin] - sweeps.log_policy[fin])) <= 4e-8
+    low = beta <= 0.1  # near-greedy people: the jumps' case
+    assert jumps.iterations[low].mean() < 0.5 * sweeps.iterations[low].mean()
+
+
+def test_jumped_solutions_are_the_same_whatever_the_lane_width(plan_mdp, real_set):
+    theta, beta = real_set[0][::2], real_set[1][::2]
+    sols = {lanes: solve(plan_mdp, theta, beta, method="jumps", lanes=lanes) for lanes in (4, 8)}
+    # each hypothesis' jumps and sweeps depend on its own lane only
+    np.testing.assert_array_equal(sols[4].iterations, sols[8].iterations)
+    assert np.max(np.abs(sols[4].value - sols[8].value) / beta[:, None]) <= 2e-8
+
+
+def test_method_choice_and_its_errors(monkeypatch):
+    small = _ring(6)
+    a = solve(small, np.ones((1, 1)), 0.5)  # default: sweeps
+    b = solve(small, np.ones((1, 1)), 0.5, method="sweeps")
+    np.testing.assert_array_equal(a.value, b.value)
+    np.testing.assert_array_equal(a.iterations, b.iterations)
+    monkeypatch.setenv(soft_vi.SOLVER_ENV, "jumps")
+    c = solve(small, np.ones((1, 1)), 0.5)
+    d = solve(small, np.ones((1, 1)), 0.5, method="jumps")
+    np.testing.assert_array_equal(c.iterations, d.iterations)
+    assert not np.array_equal(c.iterations, a.iterations)  # the variable did choose the jumps
+    monkeypatch.setenv(soft_vi.SOLVER_ENV, "fast")
+    with pytest.raises(InputError, match="EXPERTISE_IRL_SOLVER='fast': must be one of sweeps, jumps"):
+        solve(small, np.ones((1, 1)), 0.5)
+    with pytest.raises(InputError, match="method must be one of sweeps, jumps, got 'lu'"):
+        solve(small, np.ones((1, 1)), 0.5, method="lu")
+
+
+def test_the_pool_shrinks_to_the_memory_it_has():
+    mdp = generate_floor_plan(30).to_mdp()
+    S = mdp.n_states
+    roomy = kernels.default_chunk_size(mdp, lanes=4, memory=64 * 2**30)
+    assert roomy == kernels.default_chunk_size(mdp, lanes=4, memory=10**15)  # memory not binding
+    # room for 10 lanes' copies in the memory's share: 8 lanes (two groups of 4)
+    tight = int(10 * kernels.LANE_COPIES * S * 8 / kernels.MEMORY_SHARE)
+    assert kernels.default_chunk_size(mdp, lanes=4, memory=tight) == 8
+    assert kernels.default_chunk_size(mdp, lanes=4, memory=1) == 4  # never below one group
+    assert kernels.available_memory() > 0
