@@ -203,3 +203,42 @@ def test_check_off_and_bad_values(demos):
                               "--check", "fastest"), "--check", "fastest")
     assert_input_error(invoke("plot", out, "--check", "--out", demos / "x.png"), "misspecification",
                        "--check fast")
+
+
+def test_checks_policies_are_solved_once_per_map_and_equal_a_direct_solve(monkeypatch):
+    """A study's participants share maps and hypotheses: draw_policies solves each (map, θ, β)
+    once, in fixed batches of SOLVE_BATCH, and what it returns is the solver's policy for exactly
+    the hypotheses asked (compared with a direct solve of each to 1e-12: the solver's answer for
+    one hypothesis does not depend on its batch-mates)."""
+    import expertise_irl.inference.misspecification as mis
+    from expertise_irl.planning import soft_vi
+    from expertise_irl.worlds.maps import resolve_world
+
+    mdp = resolve_world("crossroads").to_mdp()
+    K = mdp.n_features
+    rng = np.random.default_rng(5)
+    theta = rng.dirichlet(np.ones(K), size=20)
+    beta = np.exp(rng.uniform(np.log(0.05), np.log(2.0), size=20))
+    monkeypatch.setattr(mis, "_POLICIES", mis._PolicyCache(mis.POLICY_CACHE_BYTES))
+    calls = []
+    real = soft_vi.solve
+
+    def counting(m, th, b, **kw):
+        calls.append(len(b))
+        return real(m, th, b, **kw)
+
+    monkeypatch.setattr(soft_vi, "solve", counting)
+    w = np.ones(20)
+    def draw():
+        return mis.draw_policies([mdp], theta, beta, w, np.random.default_rng(0), "maxent", replicates=60)
+
+    pols, which, n = draw()
+    assert set(calls) == {mis.SOLVE_BATCH} and n == len(np.unique(which))
+    first = len(calls)
+    pols2, _, _ = draw()
+    assert len(calls) == first  # every hypothesis was already solved
+    np.testing.assert_array_equal(pols2[0], pols[0])
+    used = np.unique(np.random.default_rng(0).choice(20, size=60, p=w / w.sum()))
+    for d, h in enumerate(used):
+        direct = real(mdp, theta[h:h + 1], beta[h:h + 1], model="maxent").log_policy[0]
+        np.testing.assert_allclose(pols[0][d], direct, rtol=0, atol=1e-12)

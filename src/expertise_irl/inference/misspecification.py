@@ -27,7 +27,9 @@ apart (``--check``):
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from collections.abc import Sequence
 from typing import Any
 
@@ -88,10 +90,62 @@ def draw_policies(mdps: Sequence[TabularMDP], theta: np.ndarray, beta: np.ndarra
     used, inv = np.unique(which, return_inverse=True)
     if tables is not None:
         return [np.asarray(t)[used] for t in tables], inv, len(used)
-    from ..planning.soft_vi import solve
-
-    out = [solve(m, theta[used], beta[used], model=model).log_policy for m in mdps]
+    out = [_POLICIES.get(m, theta[used], beta[used], model) for m in mdps]
     return out, inv, len(used)
+
+
+def _mdp_key(mdp: TabularMDP) -> bytes:
+    h = hashlib.sha1()
+    for a in (mdp.next_state, mdp.features, mdp.terminal, getattr(mdp, "reward_offset", None)):
+        if a is not None:
+            h.update(np.ascontiguousarray(a).tobytes())
+    h.update(repr(float(mdp.gamma)).encode())
+    return h.digest()
+
+
+class _PolicyCache:
+    """Log-policies of (map, θ, β, model) already solved in this process, least recently used
+    first out beyond :data:`POLICY_CACHE_BYTES`.
+
+    The participants of a study share maps and their posteriors share hypotheses of the set, so
+    most draws of a study's checks were solved for someone before. The hypotheses not yet solved
+    are solved :data:`SOLVE_BATCH` at a time (the last batch padded), so that each map compiles
+    one program rather than one per participant's number of draws."""
+
+    def __init__(self, max_bytes: int):
+        self.max_bytes, self.bytes = max_bytes, 0
+        self.items: OrderedDict[tuple, np.ndarray] = OrderedDict()
+
+    def get(self, mdp: TabularMDP, theta: np.ndarray, beta: np.ndarray, model: str) -> np.ndarray:
+        from ..planning.soft_vi import solve
+
+        base = _mdp_key(mdp)
+        keys = [(base, model, np.asarray(t, np.float64).tobytes(), float(b)) for t, b in zip(theta, beta,
+                                                                                           strict=True)]
+        todo = list(dict.fromkeys(k for k in keys if k not in self.items))
+        if todo:
+            index = {k: i for i, k in enumerate(keys)}
+            rows = [index[k] for k in todo]
+            for c in range(0, len(rows), SOLVE_BATCH):
+                part = rows[c:c + SOLVE_BATCH]
+                padded = part + [part[-1]] * (SOLVE_BATCH - len(part))
+                lp = np.asarray(solve(mdp, theta[padded], beta[padded], model=model).log_policy)
+                for j, k in enumerate(todo[c:c + SOLVE_BATCH]):
+                    self.items[k] = lp[j]
+                    self.bytes += lp[j].nbytes
+            while self.bytes > self.max_bytes and len(self.items) > len(keys):
+                _, old = self.items.popitem(last=False)
+                self.bytes -= old.nbytes
+        for k in keys:
+            self.items.move_to_end(k)
+        return np.stack([self.items[k] for k in keys])
+
+
+#: Hypotheses per solve of the checks' policies (one compiled shape per map).
+SOLVE_BATCH = 16
+#: The policy cache's size; one policy is S·A·8 bytes (8 KB on a 200-state map with 5 actions).
+POLICY_CACHE_BYTES = 512 * 2**20
+_POLICIES = _PolicyCache(POLICY_CACHE_BYTES)
 
 
 # ---------------------------------------------------------------------------- verdict

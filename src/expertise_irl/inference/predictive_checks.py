@@ -137,7 +137,8 @@ class _Stats:
                                    for k in range(mdp.n_features)], axis=1)
         self.agree += np.bincount(set_id, weights=(actions == best_action[set_id, states]).astype(float),
                                   minlength=n)
-        np.add.at(self.visits, (set_id, visit_offset + states), 1.0)
+        rows = self.visits.shape[1]
+        self.visits += np.bincount(set_id * rows + visit_offset + states, minlength=n * rows).reshape(n, rows)
         # episodes that reached a goal: their last move enters a terminal state
         ends = mdp.terminal[mdp.next_state[states, actions]]
         self.goal_episodes += np.bincount(set_id[ends], minlength=n)
