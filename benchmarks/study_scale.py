@@ -15,7 +15,11 @@ with ``--figures none --population`` (the hierarchical fit of ``study --populati
 shared solves it reads).
 
     python benchmarks/study_scale.py [--participants 100] [--maps 12] [--workers N] [--population]
-                                     [--json FILE]
+                                     [--population-only] [--check off|fast|full] [--json FILE]
+
+``--check`` is passed to every run (the command's own default otherwise); ``--population-only``
+skips the run with every figure (the ``--figures none`` run still comes first and warms the JAX
+cache).
 """
 
 from __future__ import annotations
@@ -91,23 +95,31 @@ def main() -> None:
     ap.add_argument("--maps", type=int, default=12)
     ap.add_argument("--workers", type=int, default=None, help="local workers (default: one per core)")
     ap.add_argument("--population", action="store_true", help="also time study --population")
+    ap.add_argument("--population-only", action="store_true",
+                    help="time --figures none and --population only (implies --population)")
+    ap.add_argument("--check", choices=("off", "fast", "full"), default=None,
+                    help="pass --check to every run (default: the command's default)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     info = machine_info()
     extra = ["--workers", str(args.workers)] if args.workers else []
+    if args.check:
+        extra += ["--check", args.check]
+    args.population = args.population or args.population_only
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         t = time.perf_counter()
         manifest = build(tmp, args.participants, args.maps)
         built = time.perf_counter() - t
         cache = tmp / "jax-cache"
-        every = run(manifest, tmp / "all", cache, extra)
+        every = None if args.population_only else run(manifest, tmp / "all", cache, extra)
         none = run(manifest, tmp / "none", cache, [*extra, "--figures", "none"])
         pooled = (run(manifest, tmp / "population", cache, [*extra, "--figures", "none", "--population"])
                   if args.population else None)
     result = {**info, "participants": args.participants, "maps": args.maps,
               "rows": args.participants * args.maps, "workers": args.workers, "build_s": round(built, 1),
-              "figures_all": every, "figures_none": none, **({"population": pooled} if pooled else {})}
+              "check": args.check, **({"figures_all": every} if every else {}), "figures_none": none,
+              **({"population": pooled} if pooled else {})}
     report(result, args.json)
 
 
