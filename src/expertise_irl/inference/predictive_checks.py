@@ -118,7 +118,7 @@ def simulate_from_starts(mdp: TabularMDP, log_policy: np.ndarray, which: np.ndar
 class _Stats:
     """Accumulates each statistic's numerator and denominator over a person's tasks."""
 
-    def __init__(self, n_sets: int, names: Sequence[str], n_visit_rows: int):
+    def __init__(self, n_sets: int, names: Sequence[str]):
         self.n = n_sets
         self.moves = np.zeros(n_sets)
         self.episodes = np.zeros(n_sets)
@@ -126,7 +126,8 @@ class _Stats:
         self.goal_episodes = np.zeros(n_sets)
         self.features = np.zeros((n_sets, len(names)))
         self.agree = np.zeros(n_sets)
-        self.visits = np.zeros((n_sets, n_visit_rows))
+        self._visit_keys: list[np.ndarray] = []  # set · (offset + state), until :meth:`visits_over`
+        self.visits = np.zeros((n_sets, 0))
 
     def add(self, mdp: TabularMDP, set_id, episode_key, states, actions, n_episodes_per_set, best_action,
             visit_offset: int) -> None:
@@ -137,14 +138,26 @@ class _Stats:
                                    for k in range(mdp.n_features)], axis=1)
         self.agree += np.bincount(set_id, weights=(actions == best_action[set_id, states]).astype(float),
                                   minlength=n)
-        rows = self.visits.shape[1]
-        self.visits += np.bincount(set_id * rows + visit_offset + states, minlength=n * rows).reshape(n, rows)
+        self._visit_keys.append(np.stack([set_id, visit_offset + np.asarray(states)]))
         # episodes that reached a goal: their last move enters a terminal state
         ends = mdp.terminal[mdp.next_state[states, actions]]
         self.goal_episodes += np.bincount(set_id[ends], minlength=n)
         reached = np.zeros(episode_key.max() + 1 if len(episode_key) else 0, dtype=bool)
         reached[episode_key[ends]] = True
         self.goal_moves += np.bincount(set_id, weights=reached[episode_key].astype(float), minlength=n)
+
+    def visited(self) -> np.ndarray:
+        """The (offset) states any set visited."""
+        return np.unique(np.concatenate([k[1] for k in self._visit_keys])) if self._visit_keys else \
+            np.zeros(0, dtype=np.int64)
+
+    def visits_over(self, columns: np.ndarray) -> None:
+        """``visits [sets, columns]``: the visit counts over ``columns`` (sorted; every visited
+        state among them), dense only there: a check on a large map visits a sliver of its states."""
+        keys = np.concatenate(self._visit_keys, axis=1) if self._visit_keys else np.zeros((2, 0), np.int64)
+        flat = keys[0] * len(columns) + np.searchsorted(columns, keys[1])
+        counts = np.bincount(flat, minlength=self.n * len(columns))
+        self.visits = counts.reshape(self.n, len(columns)).astype(float)
 
     def values(self, names: Sequence[str], mean_visits: np.ndarray) -> dict[str, np.ndarray]:
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -203,8 +216,8 @@ def predictive_checks(tasks: Sequence[Task], which: np.ndarray, rng: np.random.G
     names = list(tasks[0].mdp.feature_names)
     R = len(which)
     offsets = np.cumsum([0] + [t.mdp.n_states for t in tasks])
-    obs = _Stats(1, names, int(offsets[-1]))
-    rep = _Stats(R, names, int(offsets[-1]))
+    obs = _Stats(1, names)
+    rep = _Stats(R, names)
     caps, capped = [], 0
     n_eps = 0
     for i, t in enumerate(tasks):
@@ -228,6 +241,9 @@ def predictive_checks(tasks: Sequence[Task], which: np.ndarray, rng: np.random.G
         obs.add(mdp, np.zeros(len(t.trajs), dtype=np.int64), _episode_index(t.trajs), t.trajs.state,
                 t.trajs.action, np.array([E]), best_obs, int(offsets[i]))
         rep.add(mdp, r_id, r_id * E + e_id, s, a, np.full(R, E), best_rep, int(offsets[i]))
+    columns = np.union1d(obs.visited(), rep.visited())
+    obs.visits_over(columns)
+    rep.visits_over(columns)
     rep_dist = _visit_distribution(rep.visits)
     mean_all = rep_dist.mean(axis=0)
     mean_loo = (mean_all[None] * R - rep_dist) / max(R - 1, 1)
