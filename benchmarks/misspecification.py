@@ -114,7 +114,15 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=20)
     ap.add_argument("--json", type=Path)
     ap.add_argument("--out", type=Path, help="Write a person of A's demonstrations and the MDP here.")
+    ap.add_argument("--roc", type=Path, help="Draw the ROC of the held-out gain (A against B) to this PNG; "
+                    "with --from, from an earlier run's JSON without running again.")
+    ap.add_argument("--from", dest="source", type=Path, help="An earlier run's --json (with --roc).")
     args = ap.parse_args()
+    if args.source is not None:
+        if args.roc is None:
+            raise SystemExit("--from needs --roc")
+        draw_roc(json.loads(args.source.read_text()), args.roc)
+        return
     info = machine_info()
     t0 = time.perf_counter()
     full, reduced = maps()
@@ -173,6 +181,30 @@ def main() -> None:
         print(f"{k}: {json.dumps(result[k])}")
     if args.json:
         args.json.write_text(json.dumps(result, indent=1) + "\n")
+    if args.roc:
+        draw_roc(result, args.roc)
+
+
+def draw_roc(result: dict, png: Path) -> None:
+    """The ROC of the competitor's held-out gain separating A (hidden preference) from B (noisy)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fpr, tpr = np.asarray(result["roc_gain_A_vs_B"]).T
+    fig, ax = plt.subplots(figsize=(4.2, 4.0), dpi=150)
+    ax.plot(fpr, tpr, color="#b2182b", lw=2, drawstyle="steps-post",
+            label=f"held-out gain, AUC {result['auc_gain_A_vs_B']:.3f}")
+    ax.plot([0, 1], [0, 1], color="0.6", lw=1, ls="--", label="chance")
+    n = result["people_per_population"]
+    ax.set(xlabel=f"false positive rate (B, {n} truly noisy people)",
+           ylabel=f"true positive rate (A, {n} with a hidden preference)", xlim=(0, 1), ylim=(0, 1.01),
+           title="Low expertise or missing features?")
+    ax.legend(loc="lower right", fontsize=8, frameon=False)
+    fig.tight_layout()
+    fig.savefig(png)
+    plt.close(fig)
 
 
 def _beta_hat(pop: str, i: int, beta: float, full, prior, episodes: int) -> float:
