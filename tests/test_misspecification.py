@@ -242,3 +242,27 @@ def test_checks_policies_are_solved_once_per_map_and_equal_a_direct_solve(monkey
     for d, h in enumerate(used):
         direct = real(mdp, theta[h:h + 1], beta[h:h + 1], model="maxent").log_policy[0]
         np.testing.assert_allclose(pols[0][d], direct, rtol=0, atol=1e-12)
+
+
+def test_cut_off_episodes_are_compared_with_replicates_cut_the_same_way():
+    """Episodes that stop before a goal (a recording's end, simulate's step limit) are cut off, not
+    the person's choice: their replicates stop at the same number of moves. Data simulated from the
+    model itself and cut at 12 moves (β = 3 on crossroads, where the goal takes longer than that by
+    chance) must then keep path_length inside the predictive distribution: every replicate of a
+    cut episode has at most 12 moves. Without the rule the replicates ran on to a goal or to
+    100 moves."""
+    from expertise_irl.worlds.maps import resolve_world
+
+    mdp = resolve_world("crossroads").to_mdp()
+    theta, beta = np.full(mdp.n_features, 1 / mdp.n_features), 3.0
+    trajs = simulate(mdp, theta, beta, 6, np.random.default_rng(3), max_steps=12)
+    cut = sum(not mdp.terminal[mdp.next_state[s[-1], a[-1]]] for s, a in trajs.episodes())
+    assert cut >= 4  # the premise: most episodes were cut off
+    doc = misspecification([(mdp, trajs)], check="fast", theta=theta[None], beta=np.array([beta]),
+                           weights=None,
+                           theta_hat=theta, beta_hat=beta, model="maxent", seed=0)
+    pred = doc["predictive"]
+    assert pred["cut_episodes"] == cut
+    lengths = np.array(pred["replicated"]["path_length"], dtype=float)
+    assert lengths.max() <= 12
+    assert not pred["statistics"]["path_length"]["rejected"]

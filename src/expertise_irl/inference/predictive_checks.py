@@ -16,6 +16,12 @@ demonstrations and on each replicate:
 - ``agreement``: the share of moves that are the most probable action of the posterior
   predictive policy (the mean of the draws' policies; leave one out for a replicate).
 
+**Cut-off episodes.** An observed episode that ends without entering a goal was cut off (a
+recording's end, a simulation's step limit): its replicates are cut at the same number of moves,
+so the person is compared with replicates cut the same way (``cut_episodes`` counts them). Other
+replicates stop at a goal or after max(:data:`MIN_CAP`, :data:`CAP_FACTOR` × the task's longest
+episode) moves (``capped_share``).
+
 **p-values.** For a statistic T the posterior predictive p-value comes from the randomised
 probability integral transform of the observed T among the R replicated ones,
 ``u = (#below + V·(#tied + 1)) / (R + 1)`` with V ~ Uniform(0, 1) (drawn from the check's seed):
@@ -77,13 +83,13 @@ def starts_of(trajs: Trajectories) -> np.ndarray:
 
 
 def simulate_from_starts(mdp: TabularMDP, log_policy: np.ndarray, which: np.ndarray, starts: np.ndarray,
-                         rng: np.random.Generator, max_steps: int) -> tuple[np.ndarray, ...]:
+                         rng: np.random.Generator, max_steps) -> tuple[np.ndarray, ...]:
     """Episodes of every replicate at once: replicate ``r`` acts by ``log_policy[which[r]]`` from
     each of ``starts``.
 
     Returns flat ``(replicate, episode, state, action)`` arrays in no particular order (the
     statistics below do not need one) and ``capped [R, E]``: the episode ran ``max_steps`` moves
-    without entering a terminal state.
+    without entering a terminal state. ``max_steps``: one number, or one per episode ``[E]``.
     """
     R, E = len(which), len(starts)
     cdf = np.cumsum(np.exp(log_policy), axis=-1)
@@ -94,7 +100,9 @@ def simulate_from_starts(mdp: TabularMDP, log_policy: np.ndarray, which: np.ndar
     pol = which[rep]
     active = np.arange(R * E)
     out_r, out_e, out_s, out_a = [], [], [], []
-    for _ in range(max_steps):
+    caps = np.broadcast_to(np.asarray(max_steps, dtype=np.int64), (E,))
+    capped = np.zeros(R * E, dtype=bool)
+    for step in range(int(caps.max()) if E else 0):
         if active.size == 0:
             break
         s = cur[active]
@@ -107,8 +115,9 @@ def simulate_from_starts(mdp: TabularMDP, log_policy: np.ndarray, which: np.ndar
         nxt = mdp.next_state[s, a]
         cur[active] = nxt
         active = active[~mdp.terminal[nxt]]
-    capped = np.zeros(R * E, dtype=bool)
-    capped[active] = True
+        cut = step + 1 >= caps[ep[active]]
+        capped[active[cut]] = True
+        active = active[~cut]
     def cat(xs):
         return np.concatenate(xs) if xs else np.zeros(0, dtype=np.int64)
 
@@ -218,20 +227,25 @@ def predictive_checks(tasks: Sequence[Task], which: np.ndarray, rng: np.random.G
     offsets = np.cumsum([0] + [t.mdp.n_states for t in tasks])
     obs = _Stats(1, names)
     rep = _Stats(R, names)
-    caps, capped = [], 0
+    caps, capped, cut_episodes = [], 0, 0
     n_eps = 0
     for i, t in enumerate(tasks):
         mdp, lp = t.mdp, np.asarray(t.log_policy, dtype=np.float64)
         D = lp.shape[0]
         pi = np.exp(lp)
-        lengths = [len(s) for s, _ in t.trajs.episodes()]
+        episodes = [(s, a) for s, a in t.trajs.episodes() if len(s)]
+        lengths = [len(s) for s, _ in episodes]
         cap = max(MIN_CAP, CAP_FACTOR * max(lengths))
         caps.append(cap)
+        # an episode that ends without entering a goal was cut off: its replicates are cut there too
+        reached = [bool(mdp.terminal[mdp.next_state[s[-1], a[-1]]]) for s, a in episodes]
+        cut_episodes += reached.count(False)
+        episode_caps = np.array([cap if ok else n for ok, n in zip(reached, lengths, strict=True)])
         starts = starts_of(t.trajs)
         E = len(starts)
         n_eps += E
-        r_id, e_id, s, a, cap_flags = simulate_from_starts(mdp, lp, which, starts, rng, cap)
-        capped += int(cap_flags.sum())
+        r_id, e_id, s, a, cap_flags = simulate_from_starts(mdp, lp, which, starts, rng, episode_caps)
+        capped += int(cap_flags[:, np.asarray(reached)].sum())
         # most probable action of the posterior predictive policy; a replicate's leaves its own draw out
         counts = np.bincount(which, minlength=D).astype(float)
         total = np.tensordot(counts, pi, axes=1)  # [S, A] sum over replicates of their policies
@@ -270,6 +284,7 @@ def predictive_checks(tasks: Sequence[Task], which: np.ndarray, rng: np.random.G
                 f"family-wise level {alpha:g}",
         "max_steps": caps if len(caps) > 1 else caps[0],
         "capped_share": capped / max(R * n_eps, 1),
+        "cut_episodes": cut_episodes,
         "failed": [k for k, v in rejected.items() if v],
         "statistics": stats,
         "replicated": {k: [round(float(v), 6) if np.isfinite(v) else None for v in x]
