@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke, ok
+from detour_map import MAP, REDUCED
 from scipy.stats import kstest
 
 from expertise_irl.demos.simulation import simulate
@@ -24,18 +25,6 @@ from expertise_irl.inference.misspecification import (
 from expertise_irl.inference.predictive_checks import holm, p_value, simulate_from_starts
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.worlds.zones import parse_map
-
-# The benchmark's map (benchmarks/misspecification.py): the avoid zone lies across the straight way.
-MAP = """
-..ss........
-S...........
-S...xxxx....
-S...xxxx...G
-S...xxxx....
-S...........
-..>>>>>>..tt
-"""
-REDUCED = [0, 1, 3, 4]
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from cli_helpers import invoke, ok
+from detour_map import MAP, REDUCED
 
 from expertise_irl.demos.csv_io import write_demos_csv
 from expertise_irl.demos.simulation import simulate
@@ -17,17 +18,6 @@ from expertise_irl.inference.misspecification import EXPLAINED, UNEXPLAINED, UNK
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.worlds.zones import parse_map
 
-# tests/test_misspecification.py's map: the avoid zone (x) lies across the straight way to the goal.
-MAP = """
-..ss........
-S...........
-S...xxxx....
-S...xxxx...G
-S...xxxx....
-S...........
-..>>>>>>..tt
-"""
-REDUCED = [0, 1, 3, 4]  # the study's features: all but avoid
 BETAS = ",".join(f"{b:g}" for b in np.round(np.logspace(-2.5, 1, 8), 5))
 SECTION = "## Low expertise or missing features? (--check fast)"
 
