@@ -71,3 +71,22 @@ def timed_cli(args: list[str], jax_cache) -> float:
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
     return wall
+
+
+def measured_cli(args: list, jax_cache, env: dict[str, str] | None = None) -> tuple[float, int]:
+    """(wall seconds, peak resident MB) of ``expertise-irl ARGS`` in a fresh process with JAX's
+    persistent cache in ``jax_cache`` and ``env`` added to the environment; exits with the
+    command's stderr if it fails."""
+    import subprocess
+    import time
+    from pathlib import Path
+
+    env = {**os.environ, "EXPERTISE_IRL_JAX_CACHE": str(jax_cache), **(env or {})}
+    cmd = [str(Path(sys.executable).with_name("expertise-irl")), *map(str, args)]
+    t = time.perf_counter()
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr.read().decode()[-2000:]}")
+    return wall, round(usage.ru_maxrss / 1024)  # ru_maxrss is in KB on Linux

@@ -15,30 +15,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-from _machine import machine_info, report, timed_cli
+from _machine import machine_info, measured_cli, report, timed_cli
 
 THETA = "0.3,0.5,0,0.7,1"
 BETA = 0.5
-
-
-def run_measured(args: list, jax_cache: Path) -> tuple[float, int]:
-    """(wall seconds, peak resident MB) of ``expertise-irl ARGS`` in a fresh process."""
-    env = {**os.environ, "EXPERTISE_IRL_JAX_CACHE": str(jax_cache)}
-    cmd = [str(Path(sys.executable).with_name("expertise-irl")), *map(str, args)]
-    t = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr.read().decode()[-2000:]}")
-    return wall, round(usage.ru_maxrss / 1024)  # ru_maxrss is in KB on Linux
 
 
 def main() -> None:
@@ -58,7 +41,7 @@ def main() -> None:
         runs = {}
         for label in ("cold", "warm"):
             out = tmp / f"{label}.json"
-            wall, peak = run_measured(["infer", args.map, "--demos", demos, "--thetas", "paper-sim",
+            wall, peak = measured_cli(["infer", args.map, "--demos", demos, "--thetas", "paper-sim",
                                        "--betas", "paper-sim", "--out", out], cache)
             runs[label] = {"wall_s": round(wall, 1), "peak_rss_mb": peak}
             result = json.loads(out.read_text())

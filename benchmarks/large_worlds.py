@@ -24,31 +24,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-from _machine import machine_info, report
+from _machine import machine_info, measured_cli, report
 
 THETA, BETA, EPISODES = "0.4,0.2,0.4", 0.3, 3
 
 
 def run(args: list, cache: Path, method: str | None) -> tuple[float, int]:
-    """(wall seconds, peak resident MB) of ``expertise-irl ARGS`` in a fresh process."""
-    env = {**os.environ, "EXPERTISE_IRL_JAX_CACHE": str(cache)}
-    if method is not None:
-        env["EXPERTISE_IRL_SOLVER"] = method
-    cmd = [str(Path(sys.executable).with_name("expertise-irl")), *map(str, args)]
-    t = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr.read().decode()[-2000:]}")
-    return wall, round(usage.ru_maxrss / 1024)
+    """(wall seconds, peak resident MB) of ``expertise-irl ARGS`` with solver ``method`` (None: the
+    default)."""
+    return measured_cli(args, cache, {"EXPERTISE_IRL_SOLVER": method} if method is not None else None)
 
 
 def plan_files(size: int, where: Path) -> tuple[Path, int]:
