@@ -77,23 +77,26 @@ def real_set(plan_mdp):
     return np.repeat(th, len(be), axis=0), np.tile(be, len(th))
 
 
-def test_jumps_agree_with_sweeps_within_the_tolerance_and_save_sweeps(plan_mdp, real_set):
+@pytest.mark.parametrize("method", ["jumps", "levels"])
+def test_jumps_and_levels_agree_with_sweeps_within_the_tolerance_and_save_sweeps(plan_mdp, real_set, method):
     theta, beta = real_set
     sweeps = solve(plan_mdp, theta, beta, method="sweeps")
-    jumps = solve(plan_mdp, theta, beta, method="jumps")
+    jumps = solve(plan_mdp, theta, beta, method=method)
     # each is within tol = 1e-8 nats of the fixed point on V/β (certified by the pool's plain
     # sweep), so within 2e-8 of each other; log-policies within twice that
     assert np.max(np.abs(jumps.value - sweeps.value) / beta[:, None]) <= 2e-8
     fin = np.isfinite(sweeps.log_policy)
     np.testing.assert_array_equal(np.isfinite(jumps.log_policy), fin)
     assert np.max(np.abs(jumps.log_policy[fin] - sweeps.log_policy[fin])) <= 4e-8
-    low = beta <= 0.1  # near-greedy people: the jumps' case
-    assert jumps.iterations[low].mean() < 0.5 * sweeps.iterations[low].mean()
+    if method == "jumps":
+        low = beta <= 0.1  # near-greedy people: the jumps' case
+        assert jumps.iterations[low].mean() < 0.5 * sweeps.iterations[low].mean()
 
 
-def test_jumped_solutions_are_the_same_whatever_the_lane_width(plan_mdp, real_set):
+@pytest.mark.parametrize("method", ["jumps", "levels"])
+def test_jumped_and_level_solutions_are_the_same_whatever_the_lane_width(plan_mdp, real_set, method):
     theta, beta = real_set[0][::2], real_set[1][::2]
-    sols = {lanes: solve(plan_mdp, theta, beta, method="jumps", lanes=lanes) for lanes in (4, 8)}
+    sols = {lanes: solve(plan_mdp, theta, beta, method=method, lanes=lanes) for lanes in (4, 8)}
     # each hypothesis' jumps and sweeps depend on its own lane only
     np.testing.assert_array_equal(sols[4].iterations, sols[8].iterations)
     assert np.max(np.abs(sols[4].value - sols[8].value) / beta[:, None]) <= 2e-8
@@ -111,9 +114,9 @@ def test_method_choice_and_its_errors(monkeypatch):
     np.testing.assert_array_equal(c.iterations, d.iterations)
     assert not np.array_equal(c.iterations, a.iterations)  # the variable did choose the jumps
     monkeypatch.setenv(soft_vi.SOLVER_ENV, "fast")
-    with pytest.raises(InputError, match="EXPERTISE_IRL_SOLVER='fast': must be one of sweeps, jumps"):
+    with pytest.raises(InputError, match="EXPERTISE_IRL_SOLVER='fast': must be one of sweeps, jumps, levels"):
         solve(small, np.ones((1, 1)), 0.5)
-    with pytest.raises(InputError, match="method must be one of sweeps, jumps, got 'lu'"):
+    with pytest.raises(InputError, match="method must be one of sweeps, jumps, levels, got 'lu'"):
         solve(small, np.ones((1, 1)), 0.5, method="lu")
 
 
@@ -129,13 +132,54 @@ def test_the_pool_shrinks_to_the_memory_it_has():
     assert kernels.available_memory() > 0
 
 
+@pytest.mark.parametrize("method", ["jumps", "levels"])
 @pytest.mark.parametrize("model", ["maxent-relative", "boltzmann"])
-def test_jumps_meet_the_same_guarantee_under_the_other_models(model):
+def test_jumps_and_levels_meet_the_same_guarantee_under_the_other_models(model, method):
     mdp = generate_floor_plan(16, seed=1).to_mdp()
     theta = np.array([[0, 0, 1.0], [1, 0, 0], [0.4, 0.2, 0.4]])
     beta = np.array([0.1, 0.3, 1.0])
     sweeps = solve(mdp, theta, beta, model=model, method="sweeps")
-    jumps = solve(mdp, theta, beta, model=model, method="jumps")
+    jumps = solve(mdp, theta, beta, model=model, method=method)
     assert np.max(np.abs(jumps.value - sweeps.value) / beta[:, None]) <= 2e-8  # each within 1e-8
-    # the road-loving person of β = 0.1 circles a loop: sweeps need ~1/(1-γ²) per nat, jumps do not
-    assert jumps.iterations[0] < 0.2 * sweeps.iterations[0]
+    if method == "jumps":  # the road-loving person of β = 0.1 circles a two-state loop:
+        # sweeps need ~1/(1-γ²) per nat, jumps do not (levels do: a two-state loop is one move
+        # towards the goal and one away, which a symmetric sweep crosses once, as two sweeps do)
+        assert jumps.iterations[0] < 0.2 * sweeps.iterations[0]
+
+
+def test_level_order_carries_values_round_a_long_loop_in_one_pass():
+    # a one-way ring of n states whose only exit is at state 0: the distances to the goal fall
+    # from n to 1 round the ring, so the outward pass updates every state after its successor
+    n, gamma, beta = 60, 0.99, 0.05
+    ring = _ring(n, gamma)
+    nxt = ring.next_state.copy()
+    nxt[1:n, 1] = -1  # exits elsewhere closed
+    mdp = TabularMDP(next_state=nxt, features=ring.features, terminal=ring.terminal, gamma=gamma)
+    sweeps = solve(mdp, np.ones((1, 1)), beta, method="sweeps", over_relax=False)
+    levels = solve(mdp, np.ones((1, 1)), beta, method="levels")
+    assert sweeps.iterations[0] > 1000  # γ² per sweep
+    # γ^n = 0.55 per pass: ~50 passes from ~1e3 nats to the threshold 1e-10, then the pool's check
+    assert levels.iterations[0] <= 130
+    assert np.max(np.abs(levels.value - sweeps.value)) / beta <= 2e-8
+
+
+def test_level_order_follows_the_distance_to_the_goal():
+    from expertise_irl.planning import level_order
+
+    mdp = generate_floor_plan(16, seed=1).to_mdp()
+    dist = kernels.goal_distance(mdp)
+    assert np.all(dist[mdp.terminal] == 0) and np.all(dist[~mdp.terminal] > 0)
+    # a move lowers the distance by at most one, and the distance is one more than the best move's
+    nxt = np.where(mdp.available, np.maximum(mdp.next_state, 0), 0)
+    best = np.where(mdp.available, dist[nxt], np.iinfo(np.int64).max).min(axis=1)
+    np.testing.assert_array_equal(dist[~mdp.terminal], best[~mdp.terminal] + 1)
+    prep = kernels.prepared(mdp, "float64")
+    lv = level_order.level_blocks(mdp, prep, block=8)
+    rows = np.asarray(lv.rows)
+    level_of_row = np.full(prep.n_rows, -1)
+    level_of_row[prep.rows[~mdp.terminal]] = dist[~mdp.terminal]
+    per_block = level_of_row[rows]
+    assert np.all(per_block == per_block[:, :1])  # a block holds one level
+    assert np.all(np.diff(per_block[:, 0]) >= 0)  # blocks in order of distance
+    live = prep.rows[~mdp.terminal]
+    np.testing.assert_array_equal(np.unique(rows), np.sort(live))  # every live state, no other row

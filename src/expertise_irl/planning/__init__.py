@@ -2,6 +2,8 @@
 
 - :mod:`.kernels`: the lane-pool kernels (red-black sweeps, over-relaxation, the final backup)
   and the MDP in their layout;
+- :mod:`.level_order`: sweeps in order of the distance to the goal (the ``levels`` method's
+  start values);
 - :mod:`.soft_vi`: :func:`solve`, batched soft value iteration (Eqs. 8–9) with per-hypothesis
   stopping, chunking and progress;
 - :mod:`.tuning`: the lane width measured per machine, cached in the user cache;

@@ -83,35 +83,40 @@ class Prepared(NamedTuple):
         return 2 * self.n_block + 1
 
 
-def sweep_blocks(mdp: TabularMDP) -> np.ndarray:
-    """``[S]`` block (0 or 1) of each state for the Gauss–Seidel sweep; -1 for terminal states.
-
-    The block is the parity of the shortest distance to a terminal state. In a grid world,
-    where every move changes the parity of x + y, no move stays inside a block, so a sweep
-    is an exact red-black Gauss–Seidel sweep. In any other MDP the split is still a valid
-    block Gauss–Seidel sweep (each sweep is a γ-contraction with the same fixed point);
-    moves within a block use the previous sweep's values, as in plain value iteration.
-    """
+def goal_distance(mdp: TabularMDP) -> np.ndarray:
+    """``[S]`` fewest moves from each state to a terminal state: 0 at terminal states, -1 where
+    none can be reached."""
     S = mdp.n_states
     src, act = np.nonzero(mdp.available)
     dst = mdp.next_state[src, act]
-    preds: list[list[int]] = [[] for _ in range(S)]
-    for a, b in zip(src.tolist(), dst.tolist(), strict=True):
-        preds[b].append(a)
+    keep = dst >= 0
+    src, dst = src[keep], dst[keep]
+    by_dst = np.argsort(dst, kind="stable")
+    src, dst = src[by_dst], dst[by_dst]
+    starts = np.searchsorted(dst, np.arange(S + 1))
     dist = np.full(S, -1, dtype=np.int64)
-    frontier = np.flatnonzero(mdp.terminal).tolist()
+    frontier = np.flatnonzero(mdp.terminal)
     dist[frontier] = 0
     d = 0
-    while frontier:
+    while len(frontier):
         d += 1
-        nxt = []
-        for t in frontier:
-            for u in preds[t]:
-                if dist[u] < 0:
-                    dist[u] = d
-                    nxt.append(u)
-        frontier = nxt
-    return np.where(mdp.terminal, -1, dist % 2)
+        preds = np.concatenate([src[starts[t]:starts[t + 1]] for t in frontier])
+        preds = np.unique(preds)
+        frontier = preds[dist[preds] < 0]
+        dist[frontier] = d
+    return dist
+
+
+def sweep_blocks(mdp: TabularMDP) -> np.ndarray:
+    """``[S]`` block (0 or 1) of each state for the Gauss–Seidel sweep; -1 for terminal states.
+
+    The block is the parity of the shortest distance to a terminal state (:func:`goal_distance`).
+    In a grid world, where every move changes the parity of x + y, no move stays inside a block,
+    so a sweep is an exact red-black Gauss–Seidel sweep. In any other MDP the split is still a
+    valid block Gauss–Seidel sweep (each sweep is a γ-contraction with the same fixed point);
+    moves within a block use the previous sweep's values, as in plain value iteration.
+    """
+    return np.where(mdp.terminal, -1, goal_distance(mdp) % 2)
 
 
 def prepare(mdp: TabularMDP, dtype) -> Prepared:

@@ -39,9 +39,10 @@ FLOAT32_START_MIN = 512
 TUNE_MIN = 64
 #: Share of a two-phase solve's time spent in the float32 phase (for progress reports).
 _FLOAT32_SHARE = 0.4
-#: Solver methods: ``sweeps`` (the sweep pool alone, the default) and ``jumps`` (greedy path jumps
-#: first, then the pool; see :func:`solve`).
-METHODS = ("sweeps", "jumps")
+#: Solver methods: ``sweeps`` (the sweep pool alone, the default), ``jumps`` (greedy path jumps
+#: first, then the pool) and ``levels`` (sweeps in order of the distance to the goal first, then
+#: the pool); see :func:`solve`.
+METHODS = ("sweeps", "jumps", "levels")
 #: Names the method of every solve that does not pass one (``sweeps`` runs the earlier solver
 #: from any command, e.g. ``EXPERTISE_IRL_SOLVER=sweeps expertise-irl infer ...``).
 SOLVER_ENV = "EXPERTISE_IRL_SOLVER"
@@ -208,6 +209,14 @@ def solve(
             for this machine (:func:`expertise_irl.planning.tuning.lane_width`; a set of fewer than
             :data:`TUNE_MIN` hypotheses does not measure one). Results agree within the
             tolerance whatever the width; only the speed depends on it.
+        method: how the pool's start values are found (default: :func:`default_method`, i.e.
+            :data:`SOLVER_ENV` or ``"sweeps"``): ``"sweeps"`` starts the pool from ``v_init`` (or
+            zero); ``"jumps"`` first takes greedy path jumps (:func:`.kernels.jump_start`, float64
+            only); ``"levels"`` first sweeps the states in order of their distance to the goal,
+            outwards then inwards (:mod:`.level_order`), which carries values along whole paths
+            and round long loops in one sweep. Either way the pool's plain sweeps certify the
+            tolerance, so the guarantee on V/β is the same; ``iterations`` counts the jumps'
+            and level sweeps' cost in sweeps.
 
     Raises:
         InputError: bad shapes, non-finite θ, or β <= 0.
@@ -219,12 +228,11 @@ def solve(
         method = default_method()
     if method not in METHODS:
         raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    jumps = method == "jumps"
     if model == "boltzmann":  # hard values: SOR trials fail and cost sweeps
         return _solve_hard(mdp, theta, beta, tol=tol, max_iter=max_iter, chunk_size=chunk_size,
-                           dtype=dtype, progress=progress, lanes=lanes, jumps=jumps)
+                           dtype=dtype, progress=progress, lanes=lanes, method=method)
     opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model,
-            "over_relax": over_relax, "lanes": lanes, "jumps": jumps}
+            "over_relax": over_relax, "lanes": lanes, "method": method}
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
     return _solve_two_phase(mdp, theta, beta, progress, opts)
@@ -240,7 +248,7 @@ def _solve_hard(mdp, theta, beta, *, progress, **opts) -> SoftSolution:
     np.minimum.at(bmin, inv, beta)
     opts = {**opts, "over_relax": False, "model": "boltzmann"}
     hard = _solve(mdp, uniq, bmin, v_init=None, progress=progress, **opts)
-    sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, **{**opts, "jumps": False})
+    sol = _solve(mdp, theta, beta, v_init=hard.value[inv], progress=None, **{**opts, "method": "sweeps"})
     return sol._replace(iterations=sol.iterations + hard.iterations[inv])
 
 
@@ -260,7 +268,7 @@ def _solve_two_phase(mdp, theta, beta, progress, opts) -> SoftSolution:
 
 
 def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
-           over_relax, lanes, jumps=False) -> SoftSolution:
+           over_relax, lanes, method="sweeps") -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
@@ -299,9 +307,12 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     log_pi = np.empty((H, S, A))  # every row is written below, -inf included
     iters = np.empty(H, dtype=np.int64)
     jump_sweeps = np.zeros(H, dtype=np.int64)
-    if jumps and dtype == "float64":
+    if method == "jumps" and dtype == "float64":
         scaled0, jump_sweeps = _jump_starts(prep, weights, scaled0, order, consts, slots, groups, lanes,
                                             model)
+    elif method == "levels":
+        scaled0, jump_sweeps = _level_starts(mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes,
+                                             model)
     for start in range(0, H, size):
         idx = order[start:start + size]
         n = len(idx)
@@ -344,4 +355,21 @@ def _jump_starts(prep, weights, scaled0, order, consts, slots, groups, lanes, mo
     cost = np.empty(len(order), dtype=np.int64)
     out[order] = np.asarray(v)
     cost[order] = (kernel.JUMP_SWEEPS + 1) * np.asarray(k)
+    return out, cost
+
+
+def _level_starts(mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model):
+    """Start values from symmetric level-order sweeps (:func:`.level_order.level_start`), hypotheses
+    handed out in the solve's order, and the sweeps they cost ``[H]`` (two per symmetric sweep)."""
+    from . import level_order
+
+    lv = level_order.levels_of(mdp, prep, dtype)
+    gamma, tol = consts[0], consts[1]
+    thresh = tol * (1.0 - gamma) / gamma
+    v, k = level_order.level_start(lv, jnp.asarray(weights[order]), jnp.asarray(scaled0[order]), gamma,
+                                   thresh, groups=groups, lanes=lanes, model=model)
+    out = np.empty_like(scaled0)
+    cost = np.empty(len(order), dtype=np.int64)
+    out[order] = np.asarray(v)
+    cost[order] = 2 * np.asarray(k)
     return out, cost

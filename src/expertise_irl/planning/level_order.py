@@ -1,0 +1,177 @@
+"""Gauss–Seidel sweeps in order of the distance to a goal (the ``levels`` solver method).
+
+A red-black sweep moves values two states per sweep, so a person who follows long paths or
+circles loops for ever (small β) needs ~1,200 sweeps at γ = 0.99 whatever the start. Here the
+states are updated level by level, a level being the states at one distance from a terminal
+state: first from the goal outwards, then back inwards (a symmetric sweep). A move towards the
+goal (distance − 1) then reads a value updated earlier in the outward pass, and a move away
+from it (distance ≥ + 1) one updated earlier in the inward pass, so one symmetric sweep carries
+values along a whole run of moves towards the goal followed by a run away from it: down a path
+to the goal in one pass, round a loop (one run out, one back) in one sweep. In a grid world no
+move stays within a level (each move changes the parity of the distance); elsewhere moves
+within a level read the values of the pass before, which is still a valid block Gauss–Seidel
+sweep.
+
+Levels are cut into blocks of :data:`BLOCK` states (the last block of a level padded with
+repeats of its first state, which recompute and write the same value), so every pass is one
+``fori_loop`` over blocks of one shape. A pass costs about what a red-black sweep costs per
+state. Over-relaxation is not used: along a chain updated in order it would compound as
+(γω)^length.
+
+:func:`level_start` runs these sweeps as a pool of lanes, as :func:`.kernels.jump_start` does;
+each hypothesis stops when its change meets the tolerance, when its sweeps stop contracting
+faster than :data:`LEVEL_RATE` per symmetric sweep (a wandering person, whom the red-black pool's
+over-relaxation serves better), or after a cap. Nothing here certifies anything: the values
+only start :func:`.kernels.solve_pool`, whose plain red-black sweeps certify the tolerance.
+"""
+
+from __future__ import annotations
+
+import weakref
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..mdp import TabularMDP
+from ..models import backup
+from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance
+
+#: States per block of a level (padded); 64–128 were fastest at 200 × 200 on 2 cores.
+BLOCK = 64
+#: Symmetric sweeps every hypothesis makes before it must show progress.
+LEVEL_GRACE = 8
+#: A hypothesis keeps sweeping in level order while its change shrinks at least this much per
+#: symmetric sweep, over the last :data:`LEVEL_WINDOW` (red-black sweeps shrink it by γ⁴ ≈ 0.96
+#: per two at γ = 0.99, and by ~0.7 per two where their over-relaxation works).
+LEVEL_RATE = 0.92
+#: Symmetric sweeps over which the rate is measured (it is uneven from one to the next).
+LEVEL_WINDOW = 4
+#: Most symmetric sweeps one hypothesis makes.
+LEVEL_MAX = 1000
+
+
+class Levels(NamedTuple):
+    """The solver rows in level order, in blocks of :data:`BLOCK`."""
+
+    rows: jnp.ndarray  # [n_blocks, BLOCK] solver rows (padding repeats the block's first row)
+    features: jnp.ndarray  # [n_blocks, A, BLOCK, K]
+    next_row: jnp.ndarray  # [n_blocks, A, BLOCK]
+    avail: jnp.ndarray  # [n_blocks, A, BLOCK]
+    log_n_actions: jnp.ndarray  # [n_blocks, BLOCK]
+
+
+def level_blocks(mdp: TabularMDP, prep: Prepared, block: int = BLOCK) -> Levels:
+    """The blocks of :class:`Levels` for ``mdp`` in ``prep``'s layout (every state of a
+    :class:`~expertise_irl.mdp.TabularMDP` reaches a terminal state)."""
+    dist = goal_distance(mdp)
+    live = ~mdp.terminal
+    blocks = []
+    for k in range(1, int(dist.max()) + 1):
+        r = prep.rows[np.flatnonzero(live & (dist == k))]
+        for i in range(0, len(r), block):
+            c = r[i:i + block]
+            blocks.append(np.concatenate([c, np.repeat(c[:1], block - len(c))]))
+    rows = np.array(blocks)
+    nb, A = prep.n_block, prep.features.shape[1]
+    flat = lambda x: np.moveaxis(np.asarray(x), 0, 1).reshape(A, 2 * nb, *np.shape(x)[3:])  # noqa: E731
+    feats, nxt, ok = flat(prep.features), flat(prep.next_row), flat(prep.avail)
+    log_n = np.asarray(prep.log_n_actions).reshape(2 * nb)
+    return Levels(jnp.asarray(rows, jnp.int32), jnp.asarray(np.moveaxis(feats[:, rows], 0, 1)),
+                  jnp.asarray(np.moveaxis(nxt[:, rows], 0, 1), jnp.int32),
+                  jnp.asarray(np.moveaxis(ok[:, rows], 0, 1)), jnp.asarray(log_n[rows]))
+
+
+_LEVELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def levels_of(mdp: TabularMDP, prep: Prepared, dtype: str) -> Levels:
+    """:func:`level_blocks`, kept while the (immutable) MDP lives."""
+    per_mdp = _LEVELS.setdefault(mdp, {})
+    if dtype not in per_mdp:
+        per_mdp[dtype] = level_blocks(mdp, prep)
+    return per_mdp[dtype]
+
+
+def symmetric_sweep(lv: Levels, w, v, gamma, model: str):
+    """One symmetric sweep of one lane group: outwards over the blocks, then inwards.
+    Returns ``(v, change [L])`` with the change ``max |v' − v|`` over the whole sweep."""
+    n = lv.rows.shape[0]
+
+    def body(j, v):
+        i = jnp.where(j < n, j, 2 * n - 1 - j)
+        r = jnp.where(lv.avail[i][..., None], jnp.einsum("abk,kl->abl", lv.features[i], w), -jnp.inf)
+        q = r + gamma * v.at[lv.next_row[i]].get(mode="promise_in_bounds")  # [A, BLOCK, L]
+        new, _ = backup(model, q, lv.log_n_actions[i][:, None], axis=0)
+        return v.at[lv.rows[i]].set(new, mode="promise_in_bounds")
+
+    out = jax.lax.fori_loop(0, 2 * n, body, v)
+    return out, jnp.max(jnp.abs(out - v), axis=0)
+
+
+_sym_groups = jax.vmap(symmetric_sweep, in_axes=(None, 0, 0, None, None))
+
+
+@partial(jax.jit, static_argnames=("groups", "lanes", "model"))
+def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str):
+    dtype = lv.features.dtype
+    gamma, thresh = gamma.astype(dtype), thresh.astype(dtype)
+    weights, v0 = weights.astype(dtype), v0.astype(dtype)
+    H = weights.shape[0]
+    slots = groups * lanes
+    lane_h = jnp.arange(slots)
+    active = lane_h < H
+    lane_h = jnp.where(active, lane_h, 0)
+    init = (_to_lanes(weights[lane_h], groups), _to_lanes(v0[lane_h], groups), lane_h, active,
+            jnp.zeros(slots, jnp.int64), jnp.minimum(slots, H),  # sweeps, next hypothesis
+            jnp.full((LEVEL_WINDOW, slots), jnp.inf, dtype),  # the last changes, oldest first
+            jnp.zeros_like(v0), jnp.zeros(H, jnp.int64))  # outputs: values, sweeps
+
+    def body(c):
+        w, v, lane_h, active, k, next_h, past, out_v, out_k = c
+        v, d = _sym_groups(lv, w, v, gamma, model)
+        d = _from_lanes(d)
+        k = k + active.astype(k.dtype)
+        ok = jnp.isfinite(d)
+        fast = d <= LEVEL_RATE**LEVEL_WINDOW * past[0]
+        go = ok & (d > thresh) & (k < LEVEL_MAX) & ((k < LEVEL_GRACE) | fast)
+        fin = active & ~go
+        past = jnp.concatenate([past[1:], d[None]])
+        where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
+        out_v = out_v.at[where].set(_from_lanes(v), mode="drop")
+        out_k = out_k.at[where].set(k, mode="drop")
+        new_h = next_h + jnp.cumsum(fin) - 1
+        take = fin & (new_h < H)
+        src = jnp.clip(new_h, 0, H - 1)
+        take_l = _to_lanes(take, groups)[:, None, :]
+        lane_h = jnp.where(take, new_h, lane_h)
+        w = jnp.where(take_l, _to_lanes(weights[src], groups), w)
+        v = jnp.where(take_l, _to_lanes(v0[src], groups), v)
+        past = jnp.where(take, jnp.inf, past)
+        k = jnp.where(take, 0, k)
+        active = jnp.where(fin, take, active)
+        next_h = jnp.minimum(next_h + jnp.sum(fin), H)
+        return w, v, lane_h, active, k, next_h, past, out_v, out_k
+
+    out = jax.lax.while_loop(lambda c: jnp.any(c[3]), body, init)
+    return out[7], out[8]
+
+
+def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str = "maxent"):
+    """Starting values for :func:`.kernels.solve_pool` from symmetric level-order sweeps, with a
+    pool of ``groups × lanes`` lanes that take the next hypothesis as each one stops.
+
+    A hypothesis stops when its change over a symmetric sweep is at most ``thresh``, when it has
+    not shrunk by :data:`LEVEL_RATE` per sweep over the last :data:`LEVEL_WINDOW` (after
+    :data:`LEVEL_GRACE`), after
+    :data:`LEVEL_MAX`, or when it is not finite (its values are then the pool's to mend: a
+    non-finite start is replaced below). Each hypothesis' result depends on its own weights and
+    start only, not on its lane or the others in the pool.
+
+    Returns ``(v [n, rows], symmetric sweeps [n])`` for ``weights [n, K']`` and ``v0 [n, rows]``.
+    """
+    v, k = _level_impl(lv, weights, v0, gamma, thresh, groups=groups, lanes=lanes, model=model)
+    v = jnp.where(jnp.isfinite(v).all(axis=1, keepdims=True), v, v0)
+    return v, k
