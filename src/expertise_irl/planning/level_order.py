@@ -20,7 +20,7 @@ state. Over-relaxation is not used: along a chain updated in order it would comp
 
 :func:`level_start` runs these sweeps as a pool of lanes, as :func:`.kernels.jump_start` does;
 each hypothesis stops when its change meets the tolerance, when its sweeps stop contracting
-faster than :data:`LEVEL_RATE` per symmetric sweep (a wandering person, whom the red-black pool's
+faster than four red-black sweeps would (a wandering person, whom the red-black pool's
 over-relaxation serves better), or after a cap. Nothing here certifies anything: the values
 only start :func:`.kernels.solve_pool`, whose plain red-black sweeps certify the tolerance.
 """
@@ -43,10 +43,10 @@ from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance
 BLOCK = 64
 #: Symmetric sweeps every hypothesis makes before it must show progress.
 LEVEL_GRACE = 8
-#: A hypothesis keeps sweeping in level order while its change shrinks at least this much per
-#: symmetric sweep, over the last :data:`LEVEL_WINDOW` (red-black sweeps shrink it by γ⁴ ≈ 0.96
-#: per two at γ = 0.99, and by ~0.7 per two where their over-relaxation works).
-LEVEL_RATE = 0.92
+#: A hypothesis keeps sweeping in level order while its change shrinks at least as much per
+#: symmetric sweep (two passes) as four plain red-black sweeps would shrink it, γ^LEVEL_RATE_POWER
+#: (0.923 at γ = 0.99), over the last :data:`LEVEL_WINDOW`.
+LEVEL_RATE_POWER = 8
 #: Symmetric sweeps over which the rate is measured (it is uneven from one to the next).
 LEVEL_WINDOW = 4
 #: Most symmetric sweeps one hypothesis makes.
@@ -135,7 +135,7 @@ def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
         d = _from_lanes(d)
         k = k + active.astype(k.dtype)
         ok = jnp.isfinite(d)
-        fast = d <= LEVEL_RATE**LEVEL_WINDOW * past[0]
+        fast = d <= gamma ** (LEVEL_RATE_POWER * LEVEL_WINDOW) * past[0]
         go = ok & (d > thresh) & (k < LEVEL_MAX) & ((k < LEVEL_GRACE) | fast)
         fin = active & ~go
         past = jnp.concatenate([past[1:], d[None]])
@@ -164,7 +164,7 @@ def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
     pool of ``groups × lanes`` lanes that take the next hypothesis as each one stops.
 
     A hypothesis stops when its change over a symmetric sweep is at most ``thresh``, when it has
-    not shrunk by :data:`LEVEL_RATE` per sweep over the last :data:`LEVEL_WINDOW` (after
+    not shrunk by γ^:data:`LEVEL_RATE_POWER` per sweep over the last :data:`LEVEL_WINDOW` (after
     :data:`LEVEL_GRACE`), after
     :data:`LEVEL_MAX`, or when it is not finite (its values are then the pool's to mend: a
     non-finite start is replaced below). Each hypothesis' result depends on its own weights and
