@@ -463,6 +463,32 @@ def _jump(prep: Prepared, w, v, gamma, model: str, steps: int):
 _jump_groups = jax.vmap(_jump, in_axes=(None, 0, 0, None, None, None))
 
 
+def hand_out(fin, done_v, state, weights, v0, groups: int):
+    """A start pool's refill (:func:`jump_start`, :func:`.level_order.level_start`): lanes that
+    finished (``fin``) write ``done_v`` and their count out and take the next hypothesis.
+
+    ``state`` is ``(w, v, lane_h, active, k, next_h, out_v, out_k)``: lane weights and values,
+    lane -> hypothesis, busy, per-lane count, next hypothesis, and the outputs (values, counts).
+    Returns ``(take, state)``, ``take`` marking the lanes that took a new hypothesis.
+    """
+    w, v, lane_h, active, k, next_h, out_v, out_k = state
+    H = weights.shape[0]
+    where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
+    out_v = out_v.at[where].set(_from_lanes(done_v), mode="drop")
+    out_k = out_k.at[where].set(k, mode="drop")
+    new_h = next_h + jnp.cumsum(fin) - 1
+    take = fin & (new_h < H)
+    src = jnp.clip(new_h, 0, H - 1)
+    take_l = _to_lanes(take, groups)[:, None, :]
+    lane_h = jnp.where(take, new_h, lane_h)
+    w = jnp.where(take_l, _to_lanes(weights[src], groups), w)
+    v = jnp.where(take_l, _to_lanes(v0[src], groups), v)
+    k = jnp.where(take, 0, k)
+    active = jnp.where(fin, take, active)
+    next_h = jnp.minimum(next_h + jnp.sum(fin), H)
+    return take, (w, v, lane_h, active, k, next_h, out_v, out_k)
+
+
 def _jump_impl(prep: Prepared, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str,
                steps: int):
     dtype = prep.features.dtype
@@ -501,21 +527,10 @@ def _jump_impl(prep: Prepared, weights, v0, gamma, thresh, *, groups: int, lanes
         v = jnp.where(_to_lanes(go, groups)[:, None, :], vj, v)
         d2, d1 = d1, d
         # finished lanes hand their best values out and take the next hypothesis
-        where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
-        out_v = out_v.at[where].set(_from_lanes(best_v), mode="drop")
-        out_k = out_k.at[where].set(k, mode="drop")
-        new_h = next_h + jnp.cumsum(fin) - 1
-        take = fin & (new_h < H)
-        src = jnp.clip(new_h, 0, H - 1)
-        take_l = _to_lanes(take, groups)[:, None, :]
-        lane_h = jnp.where(take, new_h, lane_h)
-        w = jnp.where(take_l, _to_lanes(weights[src], groups), w)
-        v = jnp.where(take_l, _to_lanes(v0[src], groups), v)
-        best_v = jnp.where(take_l, v, best_v)
+        take, (w, v, lane_h, active, k, next_h, out_v, out_k) = hand_out(
+            fin, best_v, (w, v, lane_h, active, k, next_h, out_v, out_k), weights, v0, groups)
+        best_v = jnp.where(_to_lanes(take, groups)[:, None, :], v, best_v)
         best_d, d1, d2 = (jnp.where(take, jnp.inf, x) for x in (best_d, d1, d2))
-        k = jnp.where(take, 0, k)
-        active = jnp.where(fin, take, active)
-        next_h = jnp.minimum(next_h + jnp.sum(fin), H)
         return w, v, lane_h, active, k, next_h, best_v, best_d, d1, d2, out_v, out_k
 
     out = jax.lax.while_loop(cond, body, init)

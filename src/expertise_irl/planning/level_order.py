@@ -37,7 +37,7 @@ import numpy as np
 
 from ..mdp import TabularMDP
 from ..models import backup
-from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance
+from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance, hand_out
 
 #: States per block of a level (padded); 64–128 were fastest at 200 × 200 on 2 cores.
 BLOCK = 64
@@ -139,20 +139,9 @@ def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
         go = ok & (d > thresh) & (k < LEVEL_MAX) & ((k < LEVEL_GRACE) | fast)
         fin = active & ~go
         past = jnp.concatenate([past[1:], d[None]])
-        where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
-        out_v = out_v.at[where].set(_from_lanes(v), mode="drop")
-        out_k = out_k.at[where].set(k, mode="drop")
-        new_h = next_h + jnp.cumsum(fin) - 1
-        take = fin & (new_h < H)
-        src = jnp.clip(new_h, 0, H - 1)
-        take_l = _to_lanes(take, groups)[:, None, :]
-        lane_h = jnp.where(take, new_h, lane_h)
-        w = jnp.where(take_l, _to_lanes(weights[src], groups), w)
-        v = jnp.where(take_l, _to_lanes(v0[src], groups), v)
+        take, (w, v, lane_h, active, k, next_h, out_v, out_k) = hand_out(
+            fin, v, (w, v, lane_h, active, k, next_h, out_v, out_k), weights, v0, groups)
         past = jnp.where(take, jnp.inf, past)
-        k = jnp.where(take, 0, k)
-        active = jnp.where(fin, take, active)
-        next_h = jnp.minimum(next_h + jnp.sum(fin), H)
         return w, v, lane_h, active, k, next_h, past, out_v, out_k
 
     out = jax.lax.while_loop(lambda c: jnp.any(c[3]), body, init)
