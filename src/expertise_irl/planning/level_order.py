@@ -154,10 +154,9 @@ def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
 
     A hypothesis stops when its change over a symmetric sweep is at most ``thresh``, when it has
     not shrunk by γ^:data:`LEVEL_RATE_POWER` per sweep over the last :data:`LEVEL_WINDOW` (after
-    :data:`LEVEL_GRACE`), after
-    :data:`LEVEL_MAX`, or when it is not finite (its values are then the pool's to mend: a
-    non-finite start is replaced below). Each hypothesis' result depends on its own weights and
-    start only, not on its lane or the others in the pool.
+    :data:`LEVEL_GRACE`), after :data:`LEVEL_MAX`, or when it is not finite (its values are then
+    replaced by its start ``v0``, for the pool to solve from there). Each hypothesis' result
+    depends on its own weights and start only, not on its lane or the others in the pool.
 
     Returns ``(v [n, rows], symmetric sweeps [n])`` for ``weights [n, K']`` and ``v0 [n, rows]``.
     """

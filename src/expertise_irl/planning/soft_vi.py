@@ -306,13 +306,10 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     value = np.empty((H, S))
     log_pi = np.empty((H, S, A))  # every row is written below, -inf included
     iters = np.empty(H, dtype=np.int64)
-    jump_sweeps = np.zeros(H, dtype=np.int64)
-    if method == "jumps" and dtype == "float64":
-        scaled0, jump_sweeps = _jump_starts(prep, weights, scaled0, order, consts, slots, groups, lanes,
-                                            model)
-    elif method == "levels":
-        scaled0, jump_sweeps = _level_starts(mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes,
-                                             model)
+    start_sweeps = np.zeros(H, dtype=np.int64)  # the start pool's cost, counted in sweeps
+    if method == "levels" or (method == "jumps" and dtype == "float64"):
+        scaled0, start_sweeps = _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts,
+                                             groups, lanes, model)
     for start in range(0, H, size):
         idx = order[start:start + size]
         n = len(idx)
@@ -328,7 +325,7 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
                 f"(theta={np.round(theta[h], 6).tolist()}, beta={beta[h]:g}) within {max_iter} "
                 f"sweeps: last change {delta[j]:.3g} nats (tol {tol:g}); raise max_iter or tol"
             )
-        iters[idx] = np.asarray(it)[:n] + jump_sweeps[idx]
+        iters[idx] = np.asarray(it)[:n] + start_sweeps[idx]
         n_final = -(-size // slots) * slots  # the final backup runs on whole lane pools
         v = jnp.concatenate([v, jnp.repeat(v[-1:], n_final - size, 0)]) if n_final > size else v
         w_final = weights[np.concatenate([padded, np.repeat(padded[-1:], n_final - size)])]
@@ -344,32 +341,25 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     return SoftSolution(value, log_pi, iters, beta.copy(), model)
 
 
-def _jump_starts(prep, weights, scaled0, order, consts, slots, groups, lanes, model):
-    """Start values from greedy path jumps (:func:`.kernels.jump_start`) with a pool of ``slots``
-    lanes, hypotheses handed out in the solve's order, and the sweeps and backups they cost ``[H]``."""
+def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model):
+    """Start values for the sweep pool from ``method``'s start pool (``jumps``:
+    :func:`.kernels.jump_start`; ``levels``: :func:`.level_order.level_start`), hypotheses handed out
+    in the solve's order, and what they cost ``[H]`` in sweeps (a jump: its sweeps and one backup;
+    a symmetric level sweep: two)."""
     gamma, tol = consts[0], consts[1]
     thresh = tol * (1.0 - gamma) / gamma
-    v, k = kernel.jump_start(prep, jnp.asarray(weights[order]), jnp.asarray(scaled0[order]), gamma, thresh,
-                             groups=groups, lanes=lanes, model=model)
+    w, v0 = jnp.asarray(weights[order]), jnp.asarray(scaled0[order])
+    if method == "jumps":
+        v, k = kernel.jump_start(prep, w, v0, gamma, thresh, groups=groups, lanes=lanes, model=model)
+        per = kernel.JUMP_SWEEPS + 1
+    else:
+        from . import level_order
+
+        v, k = level_order.level_start(level_order.levels_of(mdp, prep, dtype), w, v0, gamma, thresh,
+                                       groups=groups, lanes=lanes, model=model)
+        per = 2
     out = np.empty_like(scaled0)
     cost = np.empty(len(order), dtype=np.int64)
     out[order] = np.asarray(v)
-    cost[order] = (kernel.JUMP_SWEEPS + 1) * np.asarray(k)
-    return out, cost
-
-
-def _level_starts(mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model):
-    """Start values from symmetric level-order sweeps (:func:`.level_order.level_start`), hypotheses
-    handed out in the solve's order, and the sweeps they cost ``[H]`` (two per symmetric sweep)."""
-    from . import level_order
-
-    lv = level_order.levels_of(mdp, prep, dtype)
-    gamma, tol = consts[0], consts[1]
-    thresh = tol * (1.0 - gamma) / gamma
-    v, k = level_order.level_start(lv, jnp.asarray(weights[order]), jnp.asarray(scaled0[order]), gamma,
-                                   thresh, groups=groups, lanes=lanes, model=model)
-    out = np.empty_like(scaled0)
-    cost = np.empty(len(order), dtype=np.int64)
-    out[order] = np.asarray(v)
-    cost[order] = 2 * np.asarray(k)
+    cost[order] = per * np.asarray(k)
     return out, cost
