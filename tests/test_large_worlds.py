@@ -183,3 +183,62 @@ def test_level_order_follows_the_distance_to_the_goal():
     assert np.all(np.diff(per_block[:, 0]) >= 0)  # blocks in order of distance
     live = prep.rows[~mdp.terminal]
     np.testing.assert_array_equal(np.unique(rows), np.sort(live))  # every live state, no other row
+
+
+def _backup_np(model: str, q: np.ndarray, n_actions: np.ndarray) -> np.ndarray:
+    """The Bellman backup of scaled Q-values ``[S, A]`` (``-inf`` where unavailable)."""
+    from scipy.special import logsumexp
+
+    if model == "boltzmann":
+        return q.max(axis=1)
+    return logsumexp(q, axis=1) - (np.log(n_actions) if model == "maxent-relative" else 0.0)
+
+
+@pytest.mark.parametrize("model", ["maxent", "maxent-relative", "boltzmann"])
+def test_the_level_start_is_the_walk_towards_the_goal_and_a_lower_bound(model):
+    import jax.numpy as jnp
+
+    from expertise_irl.planning import level_order
+
+    mdp = generate_floor_plan(16, seed=1).to_mdp()
+    S, g = mdp.n_states, mdp.gamma
+    theta = np.array([[1.0, 0, 0], [0.4, 0.2, 0.4], [0, 0, 1.0]])
+    beta = np.array([0.1, 1.0, 0.3])
+    w = mdp.reward_weights(theta) / beta[:, None]
+    prep = kernels.prepared(mdp, "float64")
+    lv = level_order.levels_of(mdp, prep, "float64")
+    v = np.asarray(level_order.approach_start(lv, jnp.asarray(w), jnp.zeros((3, prep.n_rows)), jnp.asarray(g),
+                                              lanes=2, model=model))[:, prep.rows]  # 3 on lanes of 2
+    dist, live = kernels.goal_distance(mdp), ~mdp.terminal
+    nxt = np.where(mdp.available, np.maximum(mdp.next_state, 0), 0)
+    n_actions = mdp.available.sum(axis=1)
+    toward = mdp.available & (dist[nxt] == dist[:, None] - 1)
+    basis = mdp.reward_basis()
+    gaps = []
+    for h in range(3):
+        r = np.where(mdp.available, basis @ w[h], -np.inf)
+        # level by level, the same backup restricted to the moves towards the goal
+        u = np.zeros(S)
+        for k in range(1, dist.max() + 1):
+            s = np.flatnonzero((dist == k) & live)
+            u[s] = _backup_np(model, np.where(toward[s], r[s] + g * u[nxt[s]], -np.inf), n_actions[s])
+        np.testing.assert_allclose(v[h], u, rtol=0, atol=1e-9)
+        tv = np.zeros(S)
+        tv[live] = _backup_np(model, (r + g * v[h][nxt])[live], n_actions[live])
+        assert np.all(v[h] <= tv + 1e-9)  # v ≤ T v: the sweeps rise from it
+        gaps.append(np.max(tv - v[h]))
+        exact = solve(mdp, theta[h], beta[h], model=model, method="sweeps").value[0] / beta[h]
+        assert np.all(v[h] <= exact + 1e-7)
+    # a length-only person's walk towards the goal is nearly their solution already; the road-lover
+    # circles loops that the walk towards the goal never takes
+    assert gaps[0] < 1e-2 and gaps[2] > 1.0
+
+
+def test_a_cold_level_solve_starts_from_the_walk_towards_the_goal():
+    # far from the goal a length-only person's values are ~ -1/((1-γ)β) = -1,000 nats; from zero
+    # the sweeps come down at γ per move, from the walk towards the goal they start within a few nats
+    mdp = generate_floor_plan(40, seed=0).to_mdp()
+    cold = solve(mdp, [1.0, 0, 0], 0.1, method="levels")
+    zero = solve(mdp, [1.0, 0, 0], 0.1, method="levels", v_init=np.zeros((1, mdp.n_states)))
+    assert 2 * cold.iterations[0] < zero.iterations[0]  # 15 against 72 sweeps
+    np.testing.assert_allclose(cold.value / 0.1, zero.value / 0.1, rtol=0, atol=2e-8)

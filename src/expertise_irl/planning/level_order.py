@@ -18,6 +18,13 @@ repeats of its first state, which recompute and write the same value), so every 
 state. Over-relaxation is not used: along a chain updated in order it would compound as
 (γω)^length.
 
+Without a caller's start, the sweeps start from :func:`approach_start`: the values of the soft
+walk that may only move towards the goal, found exactly in one outward pass (each level reads
+the level below it, already final). Dropping moves only lowers a backup, so these values are a
+lower bound that the sweeps rise from monotonically; for a person heading for the goal they are
+nearly the solution, where a zero start lies hundreds of nats above the values of states far
+from the goal and the sweeps bring it down only as γ per move.
+
 :func:`level_start` runs these sweeps as a pool of lanes, as :func:`.kernels.jump_start` does;
 each hypothesis stops when its change meets the tolerance, when its sweeps stop contracting
 faster than four red-black sweeps would (a wandering person, whom the red-black pool's
@@ -61,6 +68,7 @@ class Levels(NamedTuple):
     next_row: jnp.ndarray  # [n_blocks, A, BLOCK]
     avail: jnp.ndarray  # [n_blocks, A, BLOCK]
     log_n_actions: jnp.ndarray  # [n_blocks, BLOCK]
+    toward: jnp.ndarray  # [n_blocks, A, BLOCK] available moves to the level below (towards the goal)
 
 
 def level_blocks(mdp: TabularMDP, prep: Prepared, block: int = BLOCK) -> Levels:
@@ -79,9 +87,13 @@ def level_blocks(mdp: TabularMDP, prep: Prepared, block: int = BLOCK) -> Levels:
     flat = lambda x: np.moveaxis(np.asarray(x), 0, 1).reshape(A, 2 * nb, *np.shape(x)[3:])  # noqa: E731
     feats, nxt, ok = flat(prep.features), flat(prep.next_row), flat(prep.avail)
     log_n = np.asarray(prep.log_n_actions).reshape(2 * nb)
+    row_dist = np.full(prep.n_rows, -1, dtype=np.int64)  # padding and the dummy row: -1
+    row_dist[prep.rows] = dist
+    nxt_b, ok_b = np.moveaxis(nxt[:, rows], 0, 1), np.moveaxis(ok[:, rows], 0, 1)
+    toward = ok_b & (row_dist[nxt_b] == row_dist[rows][:, None, :] - 1)
     return Levels(jnp.asarray(rows, jnp.int32), jnp.asarray(np.moveaxis(feats[:, rows], 0, 1)),
-                  jnp.asarray(np.moveaxis(nxt[:, rows], 0, 1), jnp.int32),
-                  jnp.asarray(np.moveaxis(ok[:, rows], 0, 1)), jnp.asarray(log_n[rows]))
+                  jnp.asarray(nxt_b, jnp.int32), jnp.asarray(ok_b), jnp.asarray(log_n[rows]),
+                  jnp.asarray(toward))
 
 
 _LEVELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -112,6 +124,47 @@ def symmetric_sweep(lv: Levels, w, v, gamma, model: str):
 
 
 _sym_groups = jax.vmap(symmetric_sweep, in_axes=(None, 0, 0, None, None))
+
+
+def approach_pass(lv: Levels, w, v, gamma, model: str):
+    """One outward pass of one lane group that backs up only the moves towards the goal (to the
+    level below), so each level reads the values just written for the level below it."""
+
+    def body(i, v):
+        r = jnp.where(lv.toward[i][..., None], jnp.einsum("abk,kl->abl", lv.features[i], w), -jnp.inf)
+        q = r + gamma * v.at[lv.next_row[i]].get(mode="promise_in_bounds")  # [A, BLOCK, L]
+        new, _ = backup(model, q, lv.log_n_actions[i][:, None], axis=0)
+        return v.at[lv.rows[i]].set(new, mode="promise_in_bounds")
+
+    return jax.lax.fori_loop(0, lv.rows.shape[0], body, v)
+
+
+@partial(jax.jit, static_argnames=("lanes", "model"))
+def _approach_impl(lv: Levels, weights, v0, gamma, *, lanes: int, model: str):
+    dtype = lv.features.dtype
+    groups = weights.shape[0] // lanes
+    w, v = _to_lanes(weights.astype(dtype), groups), _to_lanes(v0.astype(dtype), groups)
+    out = jax.lax.map(lambda x: approach_pass(lv, x[0], x[1], gamma.astype(dtype), model), (w, v))
+    return _from_lanes(out)
+
+
+def approach_start(lv: Levels, weights, v0, gamma, *, lanes: int, model: str = "maxent"):
+    """The scaled values of the soft walk that may only move towards the goal, one lane group at
+    a time: ``[n, rows]`` for ``weights [n, K']``, with ``v0 [n, rows]``'s terminal (zero) values.
+
+    Every state has a move to the level below it, so each value is finite; dropping moves can
+    only lower a backup, so these values ``v`` satisfy ``v ≤ T v`` (T the Bellman backup of any
+    of the three observation models) and the sweeps rise from them monotonically to the
+    solution. On a large plan a person who heads for the goal starts within a few nats of their
+    values everywhere, where a zero start is hundreds of nats above them far from the goal and
+    sweeps down only as γ per move (docs/performance.md, "Large worlds").
+    """
+    n = weights.shape[0]
+    pad = -n % lanes
+    if pad:
+        weights = jnp.concatenate([weights, jnp.repeat(weights[-1:], pad, 0)])
+        v0 = jnp.concatenate([v0, jnp.repeat(v0[-1:], pad, 0)])
+    return _approach_impl(lv, weights, v0, gamma, lanes=lanes, model=model)[:n]
 
 
 @partial(jax.jit, static_argnames=("groups", "lanes", "model"))

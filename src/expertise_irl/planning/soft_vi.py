@@ -214,7 +214,8 @@ def solve(
             zero); ``"jumps"`` first takes greedy path jumps (:func:`.kernels.jump_start`, float64
             only); ``"levels"`` first sweeps the states in order of their distance to the goal,
             outwards then inwards (:mod:`.level_order`), which carries values along whole paths
-            and round long loops in one sweep. Either way the pool's plain sweeps certify the
+            and round long loops in one sweep, starting (without ``v_init``) from the values of
+            the soft walk that only moves towards the goal, a lower bound on the solution. Either way the pool's plain sweeps certify the
             tolerance, so the guarantee on V/β is the same; ``iterations`` counts the jumps'
             and level sweeps' cost in sweeps.
 
@@ -309,7 +310,7 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     start_sweeps = np.zeros(H, dtype=np.int64)  # the start pool's cost, counted in sweeps
     if method == "levels" or (method == "jumps" and dtype == "float64"):
         scaled0, start_sweeps = _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts,
-                                             groups, lanes, model)
+                                             groups, lanes, model, cold=v_init is None)
     for start in range(0, H, size):
         idx = order[start:start + size]
         n = len(idx)
@@ -341,11 +342,12 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     return SoftSolution(value, log_pi, iters, beta.copy(), model)
 
 
-def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model):
+def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model, cold):
     """Start values for the sweep pool from ``method``'s start pool (``jumps``:
-    :func:`.kernels.jump_start`; ``levels``: :func:`.level_order.level_start`), hypotheses handed out
-    in the solve's order, and what they cost ``[H]`` in sweeps (a jump: its sweeps and one backup;
-    a symmetric level sweep: two)."""
+    :func:`.kernels.jump_start`; ``levels``: :func:`.level_order.level_start`, from
+    :func:`.level_order.approach_start` when ``cold``, i.e. without the caller's ``v_init``),
+    hypotheses handed out in the solve's order, and what they cost ``[H]`` in sweeps (a jump: its
+    sweeps and one backup; a symmetric level sweep: two; the approach pass: one)."""
     gamma, tol = consts[0], consts[1]
     thresh = tol * (1.0 - gamma) / gamma
     w, v0 = jnp.asarray(weights[order]), jnp.asarray(scaled0[order])
@@ -355,11 +357,13 @@ def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, grou
     else:
         from . import level_order
 
-        v, k = level_order.level_start(level_order.levels_of(mdp, prep, dtype), w, v0, gamma, thresh,
-                                       groups=groups, lanes=lanes, model=model)
+        lv = level_order.levels_of(mdp, prep, dtype)
+        if cold:
+            v0 = level_order.approach_start(lv, w, v0, gamma, lanes=lanes, model=model)
+        v, k = level_order.level_start(lv, w, v0, gamma, thresh, groups=groups, lanes=lanes, model=model)
         per = 2
     out = np.empty_like(scaled0)
     cost = np.empty(len(order), dtype=np.int64)
     out[order] = np.asarray(v)
-    cost[order] = per * np.asarray(k)
+    cost[order] = per * np.asarray(k) + (method == "levels" and cold)
     return out, cost
