@@ -242,3 +242,28 @@ def test_a_cold_level_solve_starts_from_the_walk_towards_the_goal():
     zero = solve(mdp, [1.0, 0, 0], 0.1, method="levels", v_init=np.zeros((1, mdp.n_states)))
     assert 2 * cold.iterations[0] < zero.iterations[0]  # 15 against 72 sweeps
     np.testing.assert_allclose(cold.value / 0.1, zero.value / 0.1, rtol=0, atol=2e-8)
+
+
+@pytest.mark.parametrize("method", ["sweeps", "levels"])
+def test_a_pool_with_nothing_left_to_hand_out_shrinks_without_changing_any_answer(plan_mdp, real_set,
+                                                                                  monkeypatch, method):
+    from expertise_irl.planning import level_order
+
+    theta, beta = real_set
+    opts = {"method": method, "lanes": 4, "chunk_size": 16}  # 4 lane groups
+    monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 10**9)
+    whole = solve(plan_mdp, theta, beta, **opts)
+    shrunk_to = []
+    for mod, name in ((kernels, "_repack_pool"), (level_order, "_level_repack")):
+        def spy(carry, *, groups, _f=getattr(mod, name), _name=name):
+            shrunk_to.append((_name, groups))
+            return _f(carry, groups=groups)
+        monkeypatch.setattr(mod, name, spy)
+    monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 0)
+    shrunk = solve(plan_mdp, theta, beta, **opts)
+    # 4 groups -> 2 -> 1 in the sweep pool (and in the level pool before it)
+    assert ("_repack_pool", 2) in shrunk_to and ("_repack_pool", 1) in shrunk_to
+    assert method == "sweeps" or ("_level_repack", 1) in shrunk_to
+    # each lane's sweeps depend on its own hypothesis only, wherever it sits
+    np.testing.assert_array_equal(shrunk.iterations, whole.iterations)
+    assert np.max(np.abs(shrunk.value - whole.value) / beta[:, None]) <= 1e-9

@@ -165,6 +165,10 @@ MEMORY_SHARE = 0.25
 #: Copies of one lane's values the pool holds at once (values, the over-relaxation's saved values,
 #: the jump's values and successors, the backups' temporaries), for sizing the pool from memory.
 LANE_COPIES = 8
+#: Pools over MDPs of at least this many solver rows shrink to half their lane groups once no
+#: hypothesis is left to hand out and the busy lanes fit in half (each size compiles once). On
+#: smaller MDPs a sweep of the idle lanes costs less than the compilation.
+SHRINK_MIN_ROWS = 10_000
 
 
 def available_memory() -> int:
@@ -336,24 +340,15 @@ def _retire(c, fin, conv, d, weights, v0, groups: int):
     return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor
 
 
-def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
-               relax: bool):
-    dtype = prep.features.dtype
-    eps = jnp.finfo(dtype).eps
+def _pool_init(weights, v0, *, groups: int, lanes: int):
+    """The pool's first state: the first ``groups × lanes`` hypotheses in the lanes."""
+    dtype = v0.dtype
     H = weights.shape[0]
     slots = groups * lanes
-    weights = weights.astype(dtype)
-    v0 = v0.astype(dtype)
-    gamma = gamma.astype(dtype)
-    # Each sweep is a γ-contraction, so ||v_n+1 - v_n|| <= tol (1-γ)/γ bounds ||v_n+1 - v*|| by
-    # tol; the threshold is floored at the floating-point resolution of the values themselves.
-    base_thresh = tol * (1.0 - gamma) / gamma
-    omega = relaxation_factor(gamma)
-
     lane_h = jnp.arange(slots)
     active = lane_h < H
     lane_h = jnp.where(active, lane_h, 0)
-    init = (
+    return (
         _to_lanes(weights[lane_h], groups),  # w [G, K, L]
         _to_lanes(v0[lane_h], groups),  # v [G, rows, L]
         lane_h, active, jnp.zeros(slots, jnp.int64),  # lane -> hypothesis, busy, sweeps
@@ -365,8 +360,23 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
          jnp.zeros((groups, v0.shape[1], lanes), dtype), jnp.zeros(slots, dtype)),
     )
 
+
+def _pool_run(prep: Prepared, weights, v0, carry, gamma, tol, max_iter, min_active, *, groups: int,
+              lanes: int, model: str, relax: bool):
+    """Run the pool from ``carry`` until every lane is idle, or until no hypothesis is left to hand
+    out and at most ``min_active`` lanes are busy (then the caller repacks them into fewer groups)."""
+    dtype = prep.features.dtype
+    eps = jnp.finfo(dtype).eps
+    H = weights.shape[0]
+    gamma = gamma.astype(dtype)
+    # Each sweep is a γ-contraction, so ||v_n+1 - v_n|| <= tol (1-γ)/γ bounds ||v_n+1 - v*|| by
+    # tol; the threshold is floored at the floating-point resolution of the values themselves.
+    base_thresh = tol * (1.0 - gamma) / gamma
+    omega = relaxation_factor(gamma)
+
     def cond(c):
-        return jnp.any(c[3])
+        active, next_h = c[3], c[5]
+        return jnp.any(active) & ((next_h < H) | (jnp.sum(active) > min_active))
 
     def body(c):
         w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
@@ -385,11 +395,59 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         return _retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor), fin, conv, d,
                        weights, v0, groups)
 
-    out = jax.lax.while_loop(cond, body, init)
-    return out[6], out[7], out[8]
+    return jax.lax.while_loop(cond, body, carry)
 
 
-_solve_pool = jax.jit(_pool_impl, static_argnames=("groups", "lanes", "model", "relax"))
+_jit_pool_init = jax.jit(_pool_init, static_argnames=("groups", "lanes"))
+_jit_pool_run = jax.jit(_pool_run, static_argnames=("groups", "lanes", "model", "relax"))
+
+
+def repack(active, grouped: tuple, slotted: tuple, groups: int):
+    """Move the busy lanes (``active [slots]``) into the first slots of a pool of ``groups`` lane
+    groups, in their order (every busy lane must fit). ``grouped`` arrays are laid out
+    ``[G, ..., L]``, ``slotted`` ones have the slots along their last axis. Each lane keeps its
+    hypothesis and state; only its place changes."""
+    lanes = grouped[0].shape[-1]
+    keep = jnp.argsort(~active, stable=True)[:groups * lanes]
+    return (tuple(_to_lanes(_from_lanes(x)[keep], groups) for x in grouped),
+            tuple(x[..., keep] for x in slotted))
+
+
+@partial(jax.jit, static_argnames=("groups",))
+def _repack_pool(carry, *, groups: int):
+    w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = carry
+    mode, checks, d_prev, v_save, d_save = sor
+    (w, v, v_save), (lane_h, active, it, mode, checks, d_prev, d_save) = repack(
+        active, (w, v, v_save), (lane_h, active, it, mode, checks, d_prev, d_save), groups)
+    return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, (mode, checks, d_prev, v_save, d_save)
+
+
+def shrink_floor(n_rows: int, groups: int, lanes: int) -> int:
+    """Busy lanes at or below which a pool with nothing left to hand out moves to half its groups
+    (-1: never, for one group or an MDP of fewer than :data:`SHRINK_MIN_ROWS` solver rows)."""
+    return (groups // 2) * lanes if groups > 1 and n_rows >= SHRINK_MIN_ROWS else -1
+
+
+def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
+               relax: bool):
+    dtype = prep.features.dtype
+    weights, v0 = jnp.asarray(weights).astype(dtype), jnp.asarray(v0).astype(dtype)
+    gamma, tol, max_iter = jnp.asarray(gamma), jnp.asarray(tol), jnp.asarray(max_iter)
+    carry = _jit_pool_init(weights, v0, groups=groups, lanes=lanes)
+    while True:
+        # once no hypothesis is left to hand out, a pool of half the groups takes the busy lanes
+        # as soon as they fit in it, rather than sweeping idle lanes to the end of the longest
+        floor = shrink_floor(prep.n_rows, groups, lanes)
+        carry = _jit_pool_run(prep, weights, v0, carry, gamma, tol, max_iter, jnp.asarray(floor),
+                              groups=groups, lanes=lanes, model=model, relax=relax)
+        if floor < 0 or not bool(jnp.any(carry[3])):
+            break
+        groups //= 2
+        carry = _repack_pool(carry, groups=groups)
+    return carry[6], carry[7], carry[8]
+
+
+_solve_pool = _pool_impl
 
 
 def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):

@@ -44,7 +44,7 @@ import numpy as np
 
 from ..mdp import TabularMDP
 from ..models import backup
-from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance, hand_out
+from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance, hand_out, repack, shrink_floor
 
 #: States per block of a level (padded); 64–128 were fastest at 200 × 200 on 2 cores.
 BLOCK = 64
@@ -167,20 +167,29 @@ def approach_start(lv: Levels, weights, v0, gamma, *, lanes: int, model: str = "
     return _approach_impl(lv, weights, v0, gamma, lanes=lanes, model=model)[:n]
 
 
-@partial(jax.jit, static_argnames=("groups", "lanes", "model"))
-def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str):
-    dtype = lv.features.dtype
-    gamma, thresh = gamma.astype(dtype), thresh.astype(dtype)
-    weights, v0 = weights.astype(dtype), v0.astype(dtype)
+@partial(jax.jit, static_argnames=("groups", "lanes"))
+def _level_init(weights, v0, *, groups: int, lanes: int):
     H = weights.shape[0]
     slots = groups * lanes
     lane_h = jnp.arange(slots)
     active = lane_h < H
     lane_h = jnp.where(active, lane_h, 0)
-    init = (_to_lanes(weights[lane_h], groups), _to_lanes(v0[lane_h], groups), lane_h, active,
+    return (_to_lanes(weights[lane_h], groups), _to_lanes(v0[lane_h], groups), lane_h, active,
             jnp.zeros(slots, jnp.int64), jnp.minimum(slots, H),  # sweeps, next hypothesis
-            jnp.full((LEVEL_WINDOW, slots), jnp.inf, dtype),  # the last changes, oldest first
+            jnp.full((LEVEL_WINDOW, slots), jnp.inf, v0.dtype),  # the last changes, oldest first
             jnp.zeros_like(v0), jnp.zeros(H, jnp.int64))  # outputs: values, sweeps
+
+
+@partial(jax.jit, static_argnames=("groups", "lanes", "model"))
+def _level_run(lv: Levels, weights, v0, carry, gamma, thresh, floor, *, groups: int, lanes: int, model: str):
+    """Run the level pool from ``carry`` until every lane is idle, or until nothing is left to hand
+    out and at most ``floor`` lanes are busy."""
+    dtype = lv.features.dtype
+    gamma, thresh = gamma.astype(dtype), thresh.astype(dtype)
+    H = weights.shape[0]
+
+    def cond(c):
+        return jnp.any(c[3]) & ((c[5] < H) | (jnp.sum(c[3]) > floor))
 
     def body(c):
         w, v, lane_h, active, k, next_h, past, out_v, out_k = c
@@ -197,8 +206,31 @@ def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
         past = jnp.where(take, jnp.inf, past)
         return w, v, lane_h, active, k, next_h, past, out_v, out_k
 
-    out = jax.lax.while_loop(lambda c: jnp.any(c[3]), body, init)
-    return out[7], out[8]
+    return jax.lax.while_loop(cond, body, carry)
+
+
+@partial(jax.jit, static_argnames=("groups",))
+def _level_repack(carry, *, groups: int):
+    w, v, lane_h, active, k, next_h, past, out_v, out_k = carry
+    (w, v), (lane_h, active, k, past) = repack(active, (w, v), (lane_h, active, k, past), groups)
+    return w, v, lane_h, active, k, next_h, past, out_v, out_k
+
+
+def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int,
+                model: str):
+    dtype = lv.features.dtype
+    weights, v0 = jnp.asarray(weights).astype(dtype), jnp.asarray(v0).astype(dtype)
+    gamma, thresh = jnp.asarray(gamma), jnp.asarray(thresh)
+    carry = _level_init(weights, v0, groups=groups, lanes=lanes)
+    while True:  # shrinks as the sweep pool does (kernels.shrink_floor)
+        floor = shrink_floor(v0.shape[1], groups, lanes)
+        carry = _level_run(lv, weights, v0, carry, gamma, thresh, jnp.asarray(floor), groups=groups,
+                           lanes=lanes, model=model)
+        if floor < 0 or not bool(jnp.any(carry[3])):
+            break
+        groups //= 2
+        carry = _level_repack(carry, groups=groups)
+    return carry[7], carry[8]
 
 
 def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str = "maxent"):
@@ -209,7 +241,9 @@ def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
     not shrunk by γ^:data:`LEVEL_RATE_POWER` per sweep over the last :data:`LEVEL_WINDOW` (after
     :data:`LEVEL_GRACE`), after :data:`LEVEL_MAX`, or when it is not finite (its values are then
     replaced by its start ``v0``, for the pool to solve from there). Each hypothesis' result
-    depends on its own weights and start only, not on its lane or the others in the pool.
+    depends on its own weights and start only, not on its lane or the others in the pool. On a
+    large MDP the pool moves to half its lane groups whenever its busy lanes fit, once nothing is
+    left to hand out (:func:`.kernels.shrink_floor`).
 
     Returns ``(v [n, rows], symmetric sweeps [n])`` for ``weights [n, K']`` and ``v0 [n, rows]``.
     """

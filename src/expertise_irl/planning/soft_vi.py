@@ -215,9 +215,9 @@ def solve(
             only); ``"levels"`` first sweeps the states in order of their distance to the goal,
             outwards then inwards (:mod:`.level_order`), which carries values along whole paths
             and round long loops in one sweep, starting (without ``v_init``) from the values of
-            the soft walk that only moves towards the goal, a lower bound on the solution. Either way the pool's plain sweeps certify the
-            tolerance, so the guarantee on V/β is the same; ``iterations`` counts the jumps'
-            and level sweeps' cost in sweeps.
+            the soft walk that only moves towards the goal, a lower bound on the solution.
+            Either way the pool's plain sweeps certify the tolerance, so the guarantee on V/β is
+            the same; ``iterations`` counts the jumps' and level sweeps' cost in sweeps.
 
     Raises:
         InputError: bad shapes, non-finite θ, or β <= 0.
