@@ -254,11 +254,18 @@ def test_a_pool_with_nothing_left_to_hand_out_shrinks_without_changing_any_answe
     monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 10**9)
     whole = solve(plan_mdp, theta, beta, **opts)
     shrunk_to = []
-    for mod, name in ((kernels, "_repack_pool"), (level_order, "_level_repack")):
-        def spy(carry, *, groups, _f=getattr(mod, name), _name=name):
-            shrunk_to.append((_name, groups))
-            return _f(carry, groups=groups)
+
+    def spy_on(mod, name):
+        repack = getattr(mod, name)
+
+        def spy(carry, *, groups):
+            shrunk_to.append((name, groups))
+            return repack(carry, groups=groups)
+
         monkeypatch.setattr(mod, name, spy)
+
+    spy_on(kernels, "_repack_pool")
+    spy_on(level_order, "_level_repack")
     monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 0)
     shrunk = solve(plan_mdp, theta, beta, **opts)
     # 4 groups -> 2 -> 1 in the sweep pool (and in the level pool before it)
@@ -267,3 +274,23 @@ def test_a_pool_with_nothing_left_to_hand_out_shrinks_without_changing_any_answe
     # each lane's sweeps depend on its own hypothesis only, wherever it sits
     np.testing.assert_array_equal(shrunk.iterations, whole.iterations)
     assert np.max(np.abs(shrunk.value - whole.value) / beta[:, None]) <= 1e-9
+
+
+def test_a_few_hypotheses_on_a_large_map_take_narrower_lanes(plan_mdp, monkeypatch):
+    seen = []
+    pool = kernels.solve_pool
+
+    def spy(*args, lanes, **kw):
+        seen.append(lanes)
+        return pool(*args, lanes=lanes, **kw)
+
+    monkeypatch.setattr(kernels, "solve_pool", spy)
+    monkeypatch.setattr(soft_vi, "lane_width", lambda dtype, measure: 4)
+    wide = solve(plan_mdp, [[0.4, 0.2, 0.4]] * 3, [0.3, 1.0, 3.0])
+    monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 0)  # this plan counts as large
+    narrow = solve(plan_mdp, [[0.4, 0.2, 0.4]] * 3, [0.3, 1.0, 3.0])
+    one = solve(plan_mdp, [0.4, 0.2, 0.4], 0.3)
+    assert seen == [4, 2, 1]  # 3 hypotheses: 2 lanes (two groups); 1 hypothesis: 1 lane
+    np.testing.assert_array_equal(narrow.iterations, wide.iterations)
+    assert np.max(np.abs(narrow.value - wide.value) / np.array([0.3, 1.0, 3.0])[:, None]) <= 2e-8
+    assert np.max(np.abs(one.value[0] - wide.value[0])) / 0.3 <= 2e-8

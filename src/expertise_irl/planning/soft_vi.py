@@ -280,6 +280,11 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
         max_iter = default_max_iter(mdp, theta, beta, tol)
     if lanes is None:  # small sets take the default rather than pause to measure one
         lanes = lane_width(dtype, measure=H >= TUNE_MIN)
+        if H < lanes and S >= kernel.SHRINK_MIN_ROWS:
+            # a few hypotheses on a large map (simulate, live): idle lanes would cost as much as
+            # busy ones, so the lanes narrow to the largest power of two <= H (one hypothesis at
+            # 200 x 200: 1.5-2x faster per sweep than 4 lanes)
+            lanes = 1 << (H.bit_length() - 1)
     elif isinstance(lanes, bool) or not (isinstance(lanes, int | np.integer) and lanes >= 1):
         raise InputError(f"lanes must be a whole number >= 1, got {lanes!r}")
     lanes = int(lanes)
