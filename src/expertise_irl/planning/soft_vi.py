@@ -207,8 +207,10 @@ def solve(
             phase (docs/performance.md); it may pay where float32 is much faster than float64.
         lanes: hypotheses along the vector axis of one lane group; default: the width chosen
             for this machine (:func:`expertise_irl.planning.tuning.lane_width`; a set of fewer than
-            :data:`TUNE_MIN` hypotheses does not measure one). Results agree within the
-            tolerance whatever the width; only the speed depends on it.
+            :data:`TUNE_MIN` hypotheses does not measure one), narrowed to the largest power of
+            two <= H when fewer hypotheses than that are solved on a map of at least
+            :data:`.kernels.SHRINK_MIN_ROWS` states. Results agree within the tolerance whatever
+            the width; only the speed depends on it.
         method: how the pool's start values are found (default: :func:`default_method`, i.e.
             :data:`SOLVER_ENV` or ``"sweeps"``): ``"sweeps"`` starts the pool from ``v_init`` (or
             zero); ``"jumps"`` first takes greedy path jumps (:func:`.kernels.jump_start`, float64
