@@ -9,9 +9,10 @@ columns, restricted blocks, scattered obstacles, γ = 0.99),
 a person (θ* = (0.4, 0.2, 0.4), β* = 0.3) is simulated for 3 episodes, and
 ``expertise-irl infer PLAN --demos demos.csv --thetas paper-real --betas paper-real`` (95
 hypotheses) runs in a fresh process with an empty JAX compilation cache once per solver
-method (``EXPERTISE_IRL_SOLVER``: ``sweeps``, the library's default and the solver of earlier
-releases, ``jumps``, greedy path jumps before the sweeps, and ``levels``, sweeps in order of the
-distance to the goal before them). Wall time covers the whole command (start-up,
+method (``EXPERTISE_IRL_SOLVER``: ``sweeps``, the solver of earlier releases and the library's
+default below ``soft_vi.LEVELS_MIN_STATES`` states, ``jumps``, greedy path jumps before the
+sweeps, and ``levels``, sweeps in order of the distance to the goal before them, the default
+from that size up). Wall time covers the whole command (start-up,
 compilation, solve, belief update, writing the result); peak memory is the child's maximum
 resident set. Both methods must give the same estimates. ``simulate`` of one episode on each
 plan (one hypothesis' solve) is timed the same way. ``--big`` sizes run the first method only,

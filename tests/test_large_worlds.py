@@ -120,6 +120,21 @@ def test_method_choice_and_its_errors(monkeypatch):
         solve(small, np.ones((1, 1)), 0.5, method="lu")
 
 
+def test_large_maps_default_to_level_order(plan_mdp, monkeypatch):
+    monkeypatch.delenv(soft_vi.SOLVER_ENV, raising=False)
+    theta, beta = [[1.0, 0, 0], [0, 0, 1.0]], [0.1, 0.3]
+    assert soft_vi.default_method(plan_mdp) == "sweeps"  # 1,138 states
+    small = solve(plan_mdp, theta, beta)
+    np.testing.assert_array_equal(small.iterations, solve(plan_mdp, theta, beta, method="sweeps").iterations)
+    monkeypatch.setattr(soft_vi, "LEVELS_MIN_STATES", plan_mdp.n_states)  # this plan counts as large
+    assert soft_vi.default_method(plan_mdp) == "levels" and soft_vi.default_method() == "sweeps"
+    large = solve(plan_mdp, theta, beta)
+    np.testing.assert_array_equal(large.iterations, solve(plan_mdp, theta, beta, method="levels").iterations)
+    assert not np.array_equal(large.iterations, small.iterations)
+    monkeypatch.setenv(soft_vi.SOLVER_ENV, "sweeps")  # the variable still decides
+    assert soft_vi.default_method(plan_mdp) == "sweeps"
+
+
 def test_the_pool_shrinks_to_the_memory_it_has():
     mdp = generate_floor_plan(30).to_mdp()
     S = mdp.n_states

@@ -39,18 +39,26 @@ FLOAT32_START_MIN = 512
 TUNE_MIN = 64
 #: Share of a two-phase solve's time spent in the float32 phase (for progress reports).
 _FLOAT32_SHARE = 0.4
-#: Solver methods: ``sweeps`` (the sweep pool alone, the default), ``jumps`` (greedy path jumps
-#: first, then the pool) and ``levels`` (sweeps in order of the distance to the goal first, then
-#: the pool); see :func:`solve`.
+#: Solver methods: ``sweeps`` (the sweep pool alone), ``jumps`` (greedy path jumps first, then
+#: the pool) and ``levels`` (sweeps in order of the distance to the goal first, then the pool);
+#: see :func:`solve`.
 METHODS = ("sweeps", "jumps", "levels")
 #: Names the method of every solve that does not pass one (``sweeps`` runs the earlier solver
 #: from any command, e.g. ``EXPERTISE_IRL_SOLVER=sweeps expertise-irl infer ...``).
 SOLVER_ENV = "EXPERTISE_IRL_SOLVER"
+#: MDPs of at least this many states are solved with ``levels`` by default, smaller ones with
+#: ``sweeps``. Measured on the generated floor plans (docs/performance.md, "Large worlds"), the
+#: whole ``infer`` with ``levels`` took 1.22x the time of ``sweeps`` at 4,940 states, 0.92x at
+#: 19,760 and 0.74x at 79,040 (the 30 x 30 full set, 883 states: 1.7x).
+LEVELS_MIN_STATES = 10_000
 
 
-def default_method() -> str:
-    """The method of a solve that passes none: :data:`SOLVER_ENV` if set, else ``"sweeps"``."""
-    method = os.environ.get(SOLVER_ENV, "") or "sweeps"
+def default_method(mdp: TabularMDP | None = None) -> str:
+    """The method of a solve that passes none: :data:`SOLVER_ENV` if set, else ``"levels"`` for an
+    ``mdp`` of at least :data:`LEVELS_MIN_STATES` states and ``"sweeps"`` otherwise."""
+    method = os.environ.get(SOLVER_ENV, "")
+    if not method:
+        return "levels" if mdp is not None and mdp.n_states >= LEVELS_MIN_STATES else "sweeps"
     if method not in METHODS:
         raise InputError(f"{SOLVER_ENV}={method!r}: must be one of {', '.join(METHODS)}")
     return method
@@ -212,7 +220,8 @@ def solve(
             :data:`.kernels.SHRINK_MIN_ROWS` states. Results agree within the tolerance whatever
             the width; only the speed depends on it.
         method: how the pool's start values are found (default: :func:`default_method`, i.e.
-            :data:`SOLVER_ENV` or ``"sweeps"``): ``"sweeps"`` starts the pool from ``v_init`` (or
+            :data:`SOLVER_ENV`, else ``"levels"`` on MDPs of at least :data:`LEVELS_MIN_STATES`
+            states and ``"sweeps"`` on smaller ones): ``"sweeps"`` starts the pool from ``v_init`` (or
             zero); ``"jumps"`` first takes greedy path jumps (:func:`.kernels.jump_start`, float64
             only); ``"levels"`` first sweeps the states in order of their distance to the goal,
             outwards then inwards (:mod:`.level_order`), which carries values along whole paths
@@ -228,7 +237,7 @@ def solve(
     theta, beta = _as_hypotheses(mdp, theta, beta)
     check_model(model)
     if method is None:
-        method = default_method()
+        method = default_method(mdp)
     if method not in METHODS:
         raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if model == "boltzmann":  # hard values: SOR trials fail and cost sweeps
