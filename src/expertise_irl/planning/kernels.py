@@ -14,7 +14,10 @@ every kernel), and :func:`sweep` is also the fixed-point map of the differentiab
 
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
-costs the sum of its members' sweeps, not its slowest member's times the batch size.
+costs the sum of its members' sweeps, not its slowest member's times the batch size. Once
+none is left to hand out, on a large MDP the busy lanes move into half the lane groups
+whenever they fit (:func:`shrink_floor`), so the last few hypotheses do not sweep idle lanes
+with them.
 
 Over-relaxation. A lane whose Gauss–Seidel sweeps contract at the slowest possible rate
 (about γ² per sweep: a person who wanders, large β) switches to successive over-relaxation,
@@ -273,8 +276,8 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
     Returns ``(v [H, rows], sweeps [H], last change [H])``; the last change is 0 for every
     hypothesis that met its tolerance, and positive (or NaN) for one that did not.
     """
-    return _solve_pool(prep, weights, v0, gamma, tol, max_iter, groups=groups, lanes=lanes, model=model,
-                       relax=relax)
+    return _pool_impl(prep, weights, v0, gamma, tol, max_iter, groups=groups, lanes=lanes, model=model,
+                      relax=relax)
 
 
 @partial(jax.jit, static_argnames=("model",))
@@ -445,9 +448,6 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         groups //= 2
         carry = _repack_pool(carry, groups=groups)
     return carry[6], carry[7], carry[8]
-
-
-_solve_pool = _pool_impl
 
 
 def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):
