@@ -431,22 +431,31 @@ def shrink_floor(n_rows: int, groups: int, lanes: int) -> int:
     return (groups // 2) * lanes if groups > 1 and n_rows >= SHRINK_MIN_ROWS else -1
 
 
+def drain(run, repack_to, carry, n_rows: int, groups: int, lanes: int):
+    """Run a pool (``run(carry, floor, groups)``, whose lane flags are ``carry[3]``) until its lanes
+    are idle: once nothing is left to hand out, a pool of half the groups takes the busy lanes
+    (``repack_to(carry, groups)``) as soon as they fit in it, rather than sweeping idle lanes to
+    the end of the longest. Returns the last carry."""
+    while True:
+        floor = shrink_floor(n_rows, groups, lanes)
+        carry = run(carry, jnp.asarray(floor), groups)
+        if floor < 0 or not bool(jnp.any(carry[3])):
+            return carry
+        groups //= 2
+        carry = repack_to(carry, groups)
+
+
 def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
                relax: bool):
     dtype = prep.features.dtype
     weights, v0 = jnp.asarray(weights).astype(dtype), jnp.asarray(v0).astype(dtype)
     gamma, tol, max_iter = jnp.asarray(gamma), jnp.asarray(tol), jnp.asarray(max_iter)
-    carry = _jit_pool_init(weights, v0, groups=groups, lanes=lanes)
-    while True:
-        # once no hypothesis is left to hand out, a pool of half the groups takes the busy lanes
-        # as soon as they fit in it, rather than sweeping idle lanes to the end of the longest
-        floor = shrink_floor(prep.n_rows, groups, lanes)
-        carry = _jit_pool_run(prep, weights, v0, carry, gamma, tol, max_iter, jnp.asarray(floor),
-                              groups=groups, lanes=lanes, model=model, relax=relax)
-        if floor < 0 or not bool(jnp.any(carry[3])):
-            break
-        groups //= 2
-        carry = _repack_pool(carry, groups=groups)
+    def run(c, floor, g):
+        return _jit_pool_run(prep, weights, v0, c, gamma, tol, max_iter, floor, groups=g, lanes=lanes,
+                             model=model, relax=relax)
+
+    carry = drain(run, lambda c, g: _repack_pool(c, groups=g),
+                  _jit_pool_init(weights, v0, groups=groups, lanes=lanes), prep.n_rows, groups, lanes)
     return carry[6], carry[7], carry[8]
 
 

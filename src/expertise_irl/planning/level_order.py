@@ -44,7 +44,7 @@ import numpy as np
 
 from ..mdp import TabularMDP
 from ..models import backup
-from .kernels import Prepared, _from_lanes, _to_lanes, goal_distance, hand_out, repack, shrink_floor
+from .kernels import Prepared, _from_lanes, _to_lanes, drain, goal_distance, hand_out, repack
 
 #: States per block of a level (padded); 64–128 were fastest at 200 × 200 on 2 cores.
 BLOCK = 64
@@ -221,15 +221,11 @@ def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
     dtype = lv.features.dtype
     weights, v0 = jnp.asarray(weights).astype(dtype), jnp.asarray(v0).astype(dtype)
     gamma, thresh = jnp.asarray(gamma), jnp.asarray(thresh)
-    carry = _level_init(weights, v0, groups=groups, lanes=lanes)
-    while True:  # shrinks as the sweep pool does (kernels.shrink_floor)
-        floor = shrink_floor(v0.shape[1], groups, lanes)
-        carry = _level_run(lv, weights, v0, carry, gamma, thresh, jnp.asarray(floor), groups=groups,
-                           lanes=lanes, model=model)
-        if floor < 0 or not bool(jnp.any(carry[3])):
-            break
-        groups //= 2
-        carry = _level_repack(carry, groups=groups)
+    def run(c, floor, g):
+        return _level_run(lv, weights, v0, c, gamma, thresh, floor, groups=g, lanes=lanes, model=model)
+
+    carry = drain(run, lambda c, g: _level_repack(c, groups=g),
+                  _level_init(weights, v0, groups=groups, lanes=lanes), v0.shape[1], groups, lanes)
     return carry[7], carry[8]
 
 
