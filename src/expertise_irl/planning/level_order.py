@@ -107,6 +107,14 @@ def levels_of(mdp: TabularMDP, prep: Prepared, dtype: str) -> Levels:
     return per_mdp[dtype]
 
 
+def _update_block(lv: Levels, i, moves, w, v, gamma, model: str):
+    """``v`` with block ``i`` backed up over the actions ``moves [A, BLOCK]`` only."""
+    r = jnp.where(moves[..., None], jnp.einsum("abk,kl->abl", lv.features[i], w), -jnp.inf)
+    q = r + gamma * v.at[lv.next_row[i]].get(mode="promise_in_bounds")  # [A, BLOCK, L]
+    new, _ = backup(model, q, lv.log_n_actions[i][:, None], axis=0)
+    return v.at[lv.rows[i]].set(new, mode="promise_in_bounds")
+
+
 def symmetric_sweep(lv: Levels, w, v, gamma, model: str):
     """One symmetric sweep of one lane group: outwards over the blocks, then inwards.
     Returns ``(v, change [L])`` with the change ``max |v' − v|`` over the whole sweep."""
@@ -114,10 +122,7 @@ def symmetric_sweep(lv: Levels, w, v, gamma, model: str):
 
     def body(j, v):
         i = jnp.where(j < n, j, 2 * n - 1 - j)
-        r = jnp.where(lv.avail[i][..., None], jnp.einsum("abk,kl->abl", lv.features[i], w), -jnp.inf)
-        q = r + gamma * v.at[lv.next_row[i]].get(mode="promise_in_bounds")  # [A, BLOCK, L]
-        new, _ = backup(model, q, lv.log_n_actions[i][:, None], axis=0)
-        return v.at[lv.rows[i]].set(new, mode="promise_in_bounds")
+        return _update_block(lv, i, lv.avail[i], w, v, gamma, model)
 
     out = jax.lax.fori_loop(0, 2 * n, body, v)
     return out, jnp.max(jnp.abs(out - v), axis=0)
@@ -130,13 +135,8 @@ def approach_pass(lv: Levels, w, v, gamma, model: str):
     """One outward pass of one lane group that backs up only the moves towards the goal (to the
     level below), so each level reads the values just written for the level below it."""
 
-    def body(i, v):
-        r = jnp.where(lv.toward[i][..., None], jnp.einsum("abk,kl->abl", lv.features[i], w), -jnp.inf)
-        q = r + gamma * v.at[lv.next_row[i]].get(mode="promise_in_bounds")  # [A, BLOCK, L]
-        new, _ = backup(model, q, lv.log_n_actions[i][:, None], axis=0)
-        return v.at[lv.rows[i]].set(new, mode="promise_in_bounds")
-
-    return jax.lax.fori_loop(0, lv.rows.shape[0], body, v)
+    return jax.lax.fori_loop(0, lv.rows.shape[0],
+                             lambda i, v: _update_block(lv, i, lv.toward[i], w, v, gamma, model), v)
 
 
 @partial(jax.jit, static_argnames=("lanes", "model"))
