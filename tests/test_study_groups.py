@@ -166,3 +166,25 @@ def test_group_markdown_table():
     one = gr.group_markdown(rows(a=[1.0, 2.0]), "condition", COLUMNS)
     assert "Only one group of condition: nothing to compare." in one
     assert gr.group_tests(rows(a=[1.0, 2.0]), "condition", COLUMNS) == []
+
+
+def test_tied_small_samples_get_the_exact_permutation_p():
+    # Every β̂ of a is 0.5 and every one of b is 1.0: U_a = 0. Of the C(6, 3) = 20 ways to split the
+    # six pooled values into groups of three, only the two complete separations are as extreme,
+    # so the two-sided p = 2/20 = 0.1 (the normal approximation with tie correction says 0.047).
+    (t,) = gr.group_tests(rows(a=[0.5, 0.5, 0.5], b=[1.0, 1.0, 1.0]), "condition", COLUMNS)
+    assert t["U"] == 0.0 and t["effect"] == -1.0
+    assert t["p"] == pytest.approx(0.1, rel=1e-12)
+    assert t["method"] == "exact permutation (ties)"
+    # A tie across the groups, sizes (3, 3): a = 0.5 0.5 1, b = 1 1 2. U_a = ½ + ½ (a's 1 against
+    # b's two 1s) = 1. Of the 20 splits of the pooled values, U is 1 in three and 8 in three (the
+    # mirror), and every other split lies nearer the centre 4.5: p = 6/20.
+    (t,) = gr.group_tests(rows(a=[0.5, 0.5, 1.0], b=[1.0, 1.0, 2.0]), "condition", COLUMNS)
+    assert t["U"] == 1.0 and t["p"] == pytest.approx(6 / 20, rel=1e-12)
+    md = gr.group_markdown(rows(a=[0.5, 0.5, 0.5], b=[1.0, 1.0, 1.0]), "condition", COLUMNS)
+    assert "p = 0.1, exact permutation (ties)" in md
+
+
+def test_every_beta_the_same_gives_p_one():
+    (t,) = gr.group_tests(rows(a=[1.0, 1.0], b=[1.0, 1.0, 1.0]), "condition", COLUMNS)
+    assert (t["U"], t["p"], t["effect"], t["larger"]) == (3.0, 1.0, 0.0, None)

@@ -15,15 +15,18 @@ or the strings a CSV gives back). Rules:
   (exp of the mean of log), and of ``beta_median``: the median over the participants; each over
   the participants for whom that value is usable (``None`` if none is).
 - **Tests** (:func:`group_tests`) compare ``beta_hat``: with exactly two groups, one two-sided
-  Mann–Whitney U test (:func:`scipy.stats.mannwhitneyu`, ``method="auto"``: the exact
-  distribution for small samples without ties, else the normal approximation with tie
-  correction); with more than two, every pair, and the p-values Holm-adjusted over the pairs
-  that were tested (``p_holm``; with two groups ``p_holm`` = ``p``). ``U`` is the statistic of the
-  pair's first group (the number of (a, b) pairs with a's β̂ > b's, ties counting ½), and the
-  effect size is the rank-biserial correlation ``r = 2U/(n_a·n_b) − 1`` = P(a > b) − P(a < b),
-  in [−1, 1]: positive when the first group's β̂ tend to be larger (less expert). A pair with a
-  group of fewer than :data:`MIN_PER_GROUP` participants is not tested: its entry carries a
-  ``note`` instead of numbers. One group (or none) gives no test.
+  Mann–Whitney U test (:func:`scipy.stats.mannwhitneyu`): the exact distribution of U for small
+  samples without ties; with ties, the exact permutation distribution of U (every split of the
+  pooled β̂ into groups of these sizes, ties as they are) while there are at most
+  :data:`EXACT_SPLITS` splits, since the normal approximation is far too small for small tied
+  samples (3 against 3, all tied within a group: 0.047 where the exact p is 0.1); beyond that the
+  normal approximation with tie correction (``method`` names which); with more than two, every pair,
+  and the p-values Holm-adjusted over the pairs that were tested (``p_holm``; with two groups
+  ``p_holm`` = ``p``). ``U`` is the statistic of the pair's first group (the number of (a, b) pairs
+  with a's β̂ > b's, ties counting ½), and the effect size is the rank-biserial correlation ``r =
+  2U/(n_a·n_b) − 1`` = P(a > b) − P(a < b), in [−1, 1]: positive when the first group's β̂ tend to
+  be larger (less expert). A pair with a group of fewer than :data:`MIN_PER_GROUP` participants is
+  not tested: its entry carries a ``note`` instead of numbers. One group (or none) gives no test.
 - An unknown column raises :class:`~expertise_irl.errors.InputError` naming the available
   ones.
 """
@@ -42,6 +45,8 @@ from ..errors import InputError
 EMPTY = "(empty)"
 #: The U test needs at least this many participants in each group of a pair.
 MIN_PER_GROUP = 2
+#: With ties, the U test enumerates every split of the pooled values up to this many splits.
+EXACT_SPLITS = 200_000
 
 
 def _check_column(rows: Sequence[Mapping[str, Any]], column: str, columns: Sequence[str] | None) -> None:
@@ -127,6 +132,23 @@ def holm(p: Sequence[float]) -> list[float]:
     return out.tolist()
 
 
+def u_test(xa: np.ndarray, xb: np.ndarray) -> tuple[float, float, str]:
+    """``(U of xa, two-sided p, method)`` of the Mann–Whitney U test (rules in the module docstring)."""
+    from scipy.stats import PermutationMethod, mannwhitneyu
+
+    pooled = np.concatenate([xa, xb])
+    ties = np.unique(pooled).size < pooled.size
+    if not ties and min(xa.size, xb.size) <= 8:
+        method, how = "exact", "exact"
+    elif ties and math.comb(pooled.size, xa.size) <= EXACT_SPLITS:
+        method, how = PermutationMethod(n_resamples=np.inf), "exact permutation (ties)"
+    else:
+        method, how = "asymptotic", "normal approximation"
+    res = mannwhitneyu(xa, xb, alternative="two-sided", method=method)
+    p = float(res.pvalue)
+    return float(res.statistic), min(1.0, p) if math.isfinite(p) else 1.0, how
+
+
 def group_tests(rows: Sequence[Mapping[str, Any]], column: str,
                 columns: Sequence[str] | None = None) -> list[dict]:
     """Mann–Whitney U tests of ``beta_hat`` between the groups (every pair, in name order).
@@ -135,10 +157,9 @@ def group_tests(rows: Sequence[Mapping[str, Any]], column: str,
     ``effect`` (the rank-biserial r; > 0: a's β̂ larger), ``larger`` (the name of the group whose
     β̂ tend to be larger, None when r = 0) and ``note`` None, or, when a group has fewer than
     :data:`MIN_PER_GROUP` participants, those numbers None and ``note`` saying why.
-    ``adjustment``: ``"none"`` (one pair) or ``"holm"``.
+    ``adjustment``: ``"none"`` (one pair) or ``"holm"``; ``method``: how p was computed
+    (:func:`u_test`), None when not tested.
     """
-    from scipy.stats import mannwhitneyu
-
     _check_column(rows, column, columns)
     beta = {name: _values(members, "beta_hat") for name, members in _groups(rows, column).items()}
     pairs = list(combinations(beta, 2))
@@ -148,17 +169,16 @@ def group_tests(rows: Sequence[Mapping[str, Any]], column: str,
         xa, xb = beta[a], beta[b]
         entry: dict[str, Any] = {"groups": (a, b), "n": (int(xa.size), int(xb.size)), "U": None, "p": None,
                                  "p_holm": None, "effect": None, "larger": None, "note": None,
-                                 "adjustment": adjustment}
+                                 "adjustment": adjustment, "method": None}
         small = [g for g, x in ((a, xa), (b, xb)) if x.size < MIN_PER_GROUP]
         if small:
             sizes = ", ".join(f"{g} has {beta[g].size}" for g in small)
             entry["note"] = (f"{a} vs {b}: not tested; the Mann–Whitney U test needs at least "
                              f"{MIN_PER_GROUP} participants per group ({sizes})")
         else:
-            res = mannwhitneyu(xa, xb, alternative="two-sided", method="auto")
-            u, p = float(res.statistic), float(res.pvalue)
+            u, p, how = u_test(xa, xb)
             r = 2.0 * u / (xa.size * xb.size) - 1.0
-            entry.update(U=u, p=p if math.isfinite(p) else 1.0, effect=r,
+            entry.update(U=u, p=p, method=how, effect=r,
                          larger=a if r > 0 else b if r < 0 else None)
         out.append(entry)
     tested = [e for e in out if e["p"] is not None]
@@ -181,7 +201,7 @@ def _test_words(e: dict) -> str:
     else:
         smaller = b if e["larger"] == a else a
         direction = f"{e['larger']}'s β̂ tend to be larger (less expert) than {smaller}'s"
-    p = f"p = {e['p']:.3g}"
+    p = f"p = {e['p']:.3g}, {e['method']}"
     if e["adjustment"] == "holm":
         p += f", Holm-adjusted p = {e['p_holm']:.3g}"
     return (f"{direction} (two-sided Mann–Whitney U = {e['U']:.3g}, {p}; rank-biserial r = "

@@ -127,31 +127,50 @@ def _num(x: float, digits: int = 3) -> str:
 CHANGING_COLUMNS = ("changing_log_bf", "p_changing", "trend_p_falls", "trend_p_rises", "trend_log_ratio")
 
 
+def sign_test(falls: int, rises: int) -> float | None:
+    """The two-sided sign test's p-value of ``falls`` against ``rises`` (ties, the participants who
+    neither fall nor rise, are left out, as the test requires); None when nobody changed."""
+    from scipy.stats import binomtest
+
+    n = falls + rises
+    return float(binomtest(falls, n, 0.5).pvalue) if n else None
+
+
+def _improve_words(falls: int, rises: int, n: int, by_p: bool) -> str:
+    """The ``Do people improve?`` sentence: who falls, who rises, who keeps, and the sign test over the
+    participants who changed."""
+    if by_p:
+        rule, rule_up = "P(β falls) > 0.5", "more likely than not to end less expert"
+    else:
+        rule, rule_up = "MAP λ̂ < 0, a point estimate", "estimated to end less expert (λ̂ > 0)"
+    p = sign_test(falls, rises)
+    keep = n - falls - rises
+    test = ("no change: nobody is more likely to end more expert than less, so there is nothing for a "
+            "sign test to weigh" if p is None else
+            f"a two-sided sign test against 1/2 over the {falls + rises} who changed gives p = {p:.3g}")
+    return (f"**Do people improve?** {falls} of {n} participants are "
+            f"{'more likely than not' if by_p else 'estimated'} to end more expert than they began "
+            f"({rule}); {rises} are {rule_up}; {keep} most likely keep their expertise (ties, left out "
+            f"of the test); {test}.")
+
+
 def changing_markdown(rows: Sequence[dict[str, Any]]) -> str:
     """``--expertise changing``: do people improve over the study? The share of participants with
     P(β falls from their first episode to their last) > 0.5 (with ``--method map``, whose curve is a
-    point estimate: with λ̂ < 0), with a two-sided sign test against 1/2, then each participant's
-    Bayes factor (discrete only) and trend."""
-    from scipy.stats import binomtest
-
+    point estimate: with λ̂ < 0), with a two-sided sign test against 1/2 over those whose β falls or
+    rises (ties left out), then each participant's Bayes factor (discrete only) and trend."""
     by_p = [r for r in rows if _has(r, "trend_p_falls")]
     usable = by_p or [r for r in rows if _has(r, "trend_log_ratio")]
     if by_p:
         falls = sum(r["trend_p_falls"] > 0.5 for r in usable)
         rises = sum(r["trend_p_rises"] > 0.5 for r in usable)
-        rule, rule_up = "P(β falls) > 0.5", "more likely than not to end less expert"
     else:
         falls = sum(r["trend_log_ratio"] < 0 for r in usable)
         rises = sum(r["trend_log_ratio"] > 0 for r in usable)
-        rule, rule_up = "MAP λ̂ < 0, a point estimate", "estimated to end less expert (λ̂ > 0)"
     n = len(usable)
     lines = ["## Expertise over the study (--expertise changing)", ""]
     if n:
-        p = binomtest(falls, n, 0.5).pvalue
-        lines += [f"**Do people improve?** {falls} of {n} participants are "
-                  f"{'more likely than not' if by_p else 'estimated'} to end more expert than they began "
-                  f"({rule}); a two-sided sign test against 1/2 gives p = {p:.3g}. {rises} are {rule_up}; "
-                  "the others most likely keep their expertise.", ""]
+        lines += [_improve_words(falls, rises, n, bool(by_p)), ""]
     lines += ["Per participant, episodes in task order: the log Bayes factor for a β that changes "
               "against one β (> 0 favours change; --method discrete only), P(changing), P(β falls from "
               "the first episode to the last) and E[log β_last − log β_first] (negative: improves; −0.69 "
