@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullLocator
 
 from ..errors import plural
 from ..hypotheses import GROUP_NAMES as GROUPS
@@ -392,15 +392,46 @@ def result_figure(
     return fig
 
 
+#: The learning curve's β axis spans at least this factor: a curve that changes less than that
+#: (1e-8 of rounding in a constant person's β̂_e, say) is drawn flat, not stretched to fill the axis.
+CURVE_MIN_SPAN = 4.0
+
+
+def curve_limits(values: np.ndarray, min_span: float = CURVE_MIN_SPAN) -> tuple[float, float]:
+    """The β axis of the learning curve: every finite value > 0 in ``values``, with 8% of the log range
+    either side, and at least ``min_span`` wide (centred on the values in log space)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size == 0:
+        return 0.1, 10.0
+    lo, hi = np.log(v.min()), np.log(v.max())
+    pad = 0.08 * (hi - lo)
+    lo, hi = lo - pad, hi + pad
+    if hi - lo < math.log(min_span):
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.5 * math.log(min_span), mid + 0.5 * math.log(min_span)
+    return float(np.exp(lo)), float(np.exp(hi))
+
+
+def _beta_axis(ax: Axes, values: np.ndarray) -> None:
+    """Log scale over :func:`curve_limits`, ticks at 1, 2 and 5 times powers of ten, written plainly."""
+    ax.set_yscale("log")
+    ax.set_ylim(*curve_limits(values))
+    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_minor_locator(NullLocator())
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:g}"))
+
+
 def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
-    """``--expertise changing``: β̂_e (posterior mean) with its 90% band against the episode, the
-    median as dots, and the stationary β̂ as a line; the true β_e in red when the result has it.
+    """``--expertise changing``: β̂_e (posterior mean) with its 90% band against the episode (numbered
+    from 0, as every command numbers them), the median as dots, and the stationary β̂ as a line; the
+    true β_e in red when the result has it. The β axis is :func:`curve_limits`.
 
     gids: ``"curve-band"``, ``"curve-mean"``, ``"curve-median"``, ``"curve-stationary"``,
     ``"curve-truth"``.
     """
     curve = doc["expertise_by_episode"]
-    x = np.arange(1, len(curve) + 1)
+    x = np.array([c["episode"] if is_number(c.get("episode")) else i for i, c in enumerate(curve)])
     get = {k: np.array([np.nan if c[k] is None else c[k] for c in curve], dtype=float)
            for k in ("mean", "median", "q05", "q95")}
     if np.isfinite(get["q05"]).all():  # (a MAP curve is a point per episode: no band)
@@ -411,12 +442,21 @@ def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
             gid="curve-median")
     ax.axhline(doc["beta_hat"], color="#495057", ls="--", lw=1.2,
                label=f"one β for all episodes: β̂ = {doc['beta_hat']:.3g}", gid="curve-stationary")
+    shown = [*get.values(), [doc["beta_hat"]]]
     if isinstance(beta_true, list) and len(beta_true) == len(curve):
         ax.plot(x, beta_true, color="#d62728", lw=1.2, marker="x", ms=4, label="true β_e", gid="curve-truth")
-    ax.set_yscale("log")
+        shown.append(beta_true)
+    _beta_axis(ax, np.concatenate([np.asarray(v, dtype=float).ravel() for v in shown]))
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_xlabel("episode (in the order given)", fontsize=8.5)
+    ax.set_xlabel("episode (from 0, in the order given)", fontsize=8.5)
     ax.set_ylabel("β (log scale; low = expert)", fontsize=8.5)
+    ax.set_title(_curve_title(doc), fontsize=9)
+    ax.legend(fontsize=7.5, loc="best", frameon=False)
+    maps.tidy(ax)
+    return ax
+
+
+def _curve_title(doc: dict[str, Any]) -> str:
     ch, tr = doc.get("changing") or {}, doc.get("trend") or {}
     bf = ch.get("log_bayes_factor")
     title = "expertise by episode: " + (f"log Bayes factor {bf:.2f} for changing against one β, "
@@ -426,10 +466,7 @@ def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
         title += f"; P(β falls) = {tr['p_falls']:.2f}"
     elif is_number(tr.get("slope")):
         title += f"MAP learning curve log β_e = log β_0 + λ·{tr.get('g', 'g(e)')}, λ̂ = {tr['slope']:.3g}"
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7.5, loc="best", frameon=False)
-    maps.tidy(ax)
-    return ax
+    return title
 
 
 def _title(doc: dict[str, Any], source: Path, subtitle: str) -> str:
