@@ -18,7 +18,7 @@ import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-from typer.core import TyperGroup, TyperOption
+from typer.core import TyperArgument, TyperGroup, TyperOption
 
 from .. import __version__
 from ..errors import ConvergenceError, InputError, os_reason, plural
@@ -36,7 +36,7 @@ class _OneLineErrors(TyperGroup):
                               standalone_mode=False, **extra)
         except Exception as exc:
             if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):  # click's UsageError & co.
-                message = exc.format_message()
+                message = _no_such_option(exc) or exc.format_message()
                 if message:  # empty when help was shown for a bare command
                     _print_error(f"{message} (see --help)")
                 sys.exit(exc.exit_code)
@@ -49,6 +49,20 @@ class _OneLineErrors(TyperGroup):
         sys.exit(rv if isinstance(rv, int) else 0)
 
 
+def _no_such_option(exc) -> str | None:
+    """An unknown option, with a suggestion only when one is close once the dashes are set aside
+    (click compares with them, so ``--bogus`` is "close" to ``--out``); None for other errors."""
+    import difflib
+
+    name, possible = getattr(exc, "option_name", None), getattr(exc, "possibilities", None)
+    if type(exc).__name__ != "NoSuchOption" or not name or not name.startswith("--"):
+        return None
+    bare = {p.lstrip("-"): p for p in possible or () if p.startswith("--")}
+    close = difflib.get_close_matches(name.lstrip("-"), list(bare), n=3, cutoff=0.6)
+    hint = f" (did you mean {' or '.join(bare[c] for c in close)}?)" if close else ""
+    return f"no such option: {name}{hint}"
+
+
 def _flag_has_no_type(self, ctx):
     """Flags take no value: show none (typer's rich help prints ``<bool>`` for them)."""
     return None if getattr(self, "is_flag", False) else _display_type_rich(self, ctx)
@@ -56,6 +70,17 @@ def _flag_has_no_type(self, ctx):
 
 _display_type_rich = TyperOption.display_type_rich
 TyperOption.display_type_rich = _flag_has_no_type
+
+
+def _usage_name(self) -> str:
+    """An argument on the usage line as click writes it: ``MAP`` when required, ``[MAP]`` when not
+    (typer writes ``{MAP}`` for a required one)."""
+    name = self.display_name_raw if self.metavar is not None else self.name.upper()
+    name = name if self.required else f"[{name}]"
+    return name + ("..." if self.nargs != 1 else "")
+
+
+TyperArgument._usage_display_name = _usage_name
 
 app = typer.Typer(
     name="expertise-irl",
@@ -234,13 +259,15 @@ def goal_reward_mode_of(mdp, zone_map) -> str:
     return "fixed" if mdp.has_offset else "scaled"
 
 
-def _load_mdp(map_spec: str | None, mdp_path: Path | None, goal_reward: str | None = None):
+def _load_mdp(map_spec: str | None, mdp_path: Path | None, goal_reward: str | None = None, *,
+              map_name: str = "MAP"):
     """(mdp, map or None) from exactly one of MAP or --mdp; MAP is a zone map or, when the TOML
-    beside it says ``world = "warehouse"``, a floor plan."""
+    beside it says ``world = "warehouse"``, a floor plan. ``map_name``: how the command takes the map
+    (an argument ``MAP``, or an option such as ``--map``), for the error."""
     from ..mdp import TabularMDP
 
     if (map_spec is None) == (mdp_path is None):
-        raise InputError("give exactly one of MAP (a map file or bundled map name) or --mdp FILE.npz")
+        raise InputError(f"give exactly one of {map_name} (a map file or bundled map name) or --mdp FILE.npz")
     if mdp_path is not None:
         if goal_reward is not None:
             raise InputError("--goal-reward applies to a MAP; an MDP archive holds its own reward "

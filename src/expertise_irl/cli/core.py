@@ -147,7 +147,7 @@ def simulate(
     out_path: Annotated[Path, typer.Option("--out", help="Output demonstrations CSV.")],
     theta: Annotated[str, typer.Option(help="Preferences θ*, comma-separated (normalised to unit l1).")],
     beta: Annotated[float, typer.Option(help="Expertise temperature β* > 0 (small = expert).")],
-    map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
+    map_spec: Annotated[str | None, typer.Argument(metavar="MAP", help="Map file or bundled name.")] = None,
     mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
@@ -184,13 +184,24 @@ def infer(
     ctx: typer.Context,
     demos: Annotated[Path, typer.Option(help="Demonstrations CSV (episode,step,state,action or x,y).")],
     out_path: Annotated[Path, typer.Option("--out", help="Output result JSON.")],
-    map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
+    map_spec: Annotated[str | None, typer.Argument(metavar="MAP", help="Map file or bundled name.")] = None,
     mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
-    thetas: Annotated[str, typer.Option(
+    thetas: Annotated[str | None, typer.Option(
         help="Θ: a preset (paper-sim, paper-real) or comma-separated component values; "
-        "the unit-l1 grid over all features is built from them.")] = "paper-real",
-    betas: Annotated[str, typer.Option(
-        help="B: a preset (paper-sim, paper-real) or comma-separated temperatures.")] = "paper-sim",
+        "the unit-l1 grid over all features is built from them. Naming a set (--thetas, --betas or "
+        "--sample-thetas) uses it as given; the other defaults to paper-real Θ, paper-sim B. "
+        "Default: an adaptive set (see --refine).", show_default=False)] = None,
+    betas: Annotated[str | None, typer.Option(
+        help="B: a preset (paper-sim, paper-real) or comma-separated temperatures.",
+        show_default=False)] = None,
+    refine: Annotated[bool | None, typer.Option(
+        "--refine/--no-refine", help="Refine the hypothesis set where the posterior's mass is (β "
+        "log-spaced, θ on the simplex) until β̂, E[θ] and the 90% intervals settle; the result's "
+        "`refinement` records each round. Default: refine when no set is named; --no-refine alone "
+        "is the paper-real Θ × paper-sim B set.", show_default=False)] = None,
+    max_hypotheses: Annotated[int, typer.Option(
+        min=1, help="discrete with refinement: the most hypotheses solved in all; the refinement "
+        "stops there with a warning and the posterior so far.")] = 20_000,
     sample_thetas: Annotated[int | None, typer.Option(
         min=1, help="Use only k preference vectors drawn at random (--seed) from Θ.")] = None,
     seed: Annotated[int, typer.Option(

@@ -33,7 +33,8 @@ def _duration(seconds: float | None) -> str:
 @experiment_app.command("run")
 @handles_errors
 def run_cmd(
-    study: Annotated[str, typer.Argument(help="Study name (see `expertise-irl experiment list`).")],
+    study: Annotated[str, typer.Argument(
+        metavar="STUDY", help="Study name (see `expertise-irl experiment list`).")],
     out: Annotated[Path, typer.Option("--out", help="Sweep directory (created, or resumed if it holds "
                                       "the same study, scale and seed).")],
     scale: Annotated[str, typer.Option(help="smoke | small | paper.")] = "smoke",
@@ -94,7 +95,7 @@ def run_cmd(
 @experiment_app.command("status")
 @handles_errors
 def status_cmd(
-    out: Annotated[Path, typer.Argument(help="Sweep directory.")],
+    out: Annotated[Path, typer.Argument(metavar="DIR", help="Sweep directory.")],
 ) -> None:
     """Tasks done / total / failed, rows, time spent and an estimate of the time left."""
     from ..experiments.engine import cores, status

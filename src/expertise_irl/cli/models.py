@@ -31,7 +31,7 @@ from ._app import (
 @handles_errors
 def compare_models_command(
     demos: Annotated[Path, typer.Option(help="Demonstrations CSV (episode,step,state,action or x,y).")],
-    map_spec: Annotated[str | None, typer.Argument(metavar="[MAP]", help="Map file or bundled name.")] = None,
+    map_spec: Annotated[str | None, typer.Argument(metavar="MAP", help="Map file or bundled name.")] = None,
     mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
     models: Annotated[str, typer.Option(
         help="Comma-separated observation models to compare.")] = "maxent,maxent-relative,boltzmann",

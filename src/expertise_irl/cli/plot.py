@@ -25,7 +25,7 @@ def plot(
         "--check", help="Draw the result's misspecification checks instead: each predictive statistic's "
         "replicated values against the demonstrations', and (--check full results, with --map or --mdp) "
         "the map of where a per-state reward departs from θ̂·φ.")] = False,
-    force: Annotated[bool, typer.Option(help="Overwrite the output if it exists.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Draw a result: posterior of β and of each θ_i, the map with the demonstrations, and the belief after each action for --per-action results.
 
@@ -48,7 +48,7 @@ def plot(
     doc = load_result(result)
     mdp = zone_map = trajs = None
     if map_spec is not None or mdp_path is not None:
-        mdp, zone_map = _load_mdp(map_spec, mdp_path)
+        mdp, zone_map = _load_mdp(map_spec, mdp_path, map_name="--map")
         check_features(doc, result, mdp, mdp_path if mdp_path is not None else map_spec)
         if zone_map is None and mdp.state_xy is None:
             raise InputError(f"{mdp_path}: the MDP has no grid coordinates (state_xy), so it cannot "
