@@ -408,3 +408,15 @@ def test_study_overview_labels_every_kth_row_when_crowded():
     fig.canvas.draw()
     boxes = [t.get_window_extent() for t in labels]
     assert all(a.y0 >= b.y1 - 0.5 for a, b in itertools.pairwise(boxes))  # top to bottom, apart
+
+
+def test_theta_panel_names_the_interval_bar_by_the_colour_it_is_drawn_in():
+    # The 90% interval is a dark line at alpha 0.55 over white: it shows grey, and the title says so.
+    d = doc("discrete")
+    fig = us.participant_figure("P1", panels_for(d, ["floorplan"] * 3), d)
+    seg = by_gid(fig, "theta-interval-0")[0]
+    rgb = np.array(mpl.colors.to_rgb(seg.get_color()))
+    shown = seg.get_alpha() * rgb + (1 - seg.get_alpha()) * np.ones(3)
+    assert 0.3 < shown.mean() < 0.7  # neither black nor white
+    titles = [ax.get_title() for ax in fig.get_axes() if ax.get_title().startswith("θ:")]
+    assert titles and "grey bar = 90% interval" in titles[0]

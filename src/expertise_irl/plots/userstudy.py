@@ -801,7 +801,7 @@ def _draw_theta(ax: Axes, doc: dict[str, Any], names: list[str]) -> None:
     how = ("bars: marginal posterior of each θᵢ" if marg else "histogram of each θᵢ's draws"
            if draws is not None else "MAP point estimate: no posterior")
     distribution = bool(marg) or draws is not None
-    ax.set_title(f"θ: ◆ = θ̂, black bar = 90% interval\n{how} (scaled to its row)" if distribution
+    ax.set_title(f"θ: ◆ = θ̂, grey bar = 90% interval\n{how} (scaled to its row)" if distribution
                  else f"θ: ◆ = θ̂\n{how}", fontsize=9)
     maps.tidy(ax)
     ax.tick_params(labelsize=8)
