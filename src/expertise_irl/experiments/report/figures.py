@@ -38,6 +38,14 @@ def new_figure(ncols: int = 1, *, width: float = 4.2, height: float = 3.6, nrows
     return fig, list(axes)
 
 
+def episodes_axis(ax) -> None:
+    """An x axis of episode counts: labelled "episodes seen", ticks on whole numbers only."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_xlabel("episodes seen")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
 def save(fig, folder: Path, name: str) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     png, pdf = folder / f"{name}.png", folder / f"{name}.pdf"

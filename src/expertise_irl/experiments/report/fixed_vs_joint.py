@@ -138,7 +138,7 @@ def fig7(full_in, n: int) -> Figure:
         log = metric == "policy_regret" and F.needs_log(full_in.groupby("episodes")[metric].mean())
         F.bands(ax, full_in, "episodes", metric, "group_true", groups, F.GROUP_COLORS, labels, log=log,
                 legend=False, bounds=METRIC_RANGE[metric])
-        ax.set_xlabel("episodes seen")
+        F.episodes_axis(ax)
         ax.set_ylabel(METRIC_AXES[metric] + (" (log scale)" if log else ""))
     F.figure_legend(fig, F.lines(groups, F.GROUP_COLORS, labels))
     fig.suptitle(f"Fig. 7: metrics vs episodes 1..{n}, in-set, Full set, by expertise group", fontsize=11)
