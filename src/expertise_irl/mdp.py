@@ -310,7 +310,9 @@ class TabularMDP:
             arrays["state_xy"] = self.state_xy
         if self.reward_offset is not None:
             arrays["reward_offset"] = self.reward_offset
-        with open(path, "wb") as fh:
+        from .atomic import atomic_open
+
+        with atomic_open(path, "wb") as fh:
             np.savez_compressed(fh, **arrays)
 
     @classmethod

@@ -13,7 +13,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__
+from .atomic import atomic_open
 from .errors import InputError, read_text
 from .hypotheses import expertise_group
 
@@ -146,31 +146,10 @@ def map_digest(zone_map) -> str:
 
 
 def write_json(path: str | Path, doc: dict[str, Any]) -> None:
-    """Write ``doc`` as strict JSON (no NaN/Infinity), atomically (via a fresh temporary file)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=1, allow_nan=False)
-            fh.write("\n")
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the mode open() would
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _umask() -> int:
-    """The process umask, read once (reading it means setting it; doing that per write would race
-    with threads that create files meanwhile)."""
-    global _UMASK
-    if _UMASK is None:
-        _UMASK = os.umask(0o022)
-        os.umask(_UMASK)
-    return _UMASK
-
-
-_UMASK: int | None = None
+    """Write ``doc`` as strict JSON (no NaN/Infinity), atomically (:mod:`expertise_irl.atomic`)."""
+    with atomic_open(path, "w", encoding="utf-8") as fh:
+        json.dump(doc, fh, indent=1, allow_nan=False)
+        fh.write("\n")
 
 
 def finite_or_null(doc: Any, path: str = "", found: list[str] | None = None) -> Any:
@@ -226,7 +205,7 @@ def continuous_result(method_out: dict[str, Any], *, method: str, feature_names,
             doc["samples"] = {"chain": [int(c) for c in chain], "beta": _vec(beta),
                               "theta": [_vec(t) for t in theta]}
         else:
-            with open(samples_path, "w", encoding="utf-8", newline="") as fh:
+            with atomic_open(samples_path, "w", encoding="utf-8", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(["chain", "draw", "beta", *feature_names])
                 draw = np.zeros(len(beta), dtype=int)

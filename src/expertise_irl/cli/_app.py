@@ -7,9 +7,13 @@ Existing output files are never overwritten unless ``--force`` is given.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
+import os
+import signal
 import sys
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
@@ -32,21 +36,62 @@ class _OneLineErrors(TyperGroup):
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         try:
-            rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,
-                              standalone_mode=False, **extra)
+            with _sigterm_interrupts():
+                rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,
+                                  standalone_mode=False, **extra)
         except Exception as exc:
             if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):  # click's UsageError & co.
                 message = _no_such_option(exc) or exc.format_message()
                 if message:  # empty when help was shown for a bare command
                     _print_error(f"{message} (see --help)")
                 sys.exit(exc.exit_code)
-            if type(exc).__name__ == "Abort":
+            if type(exc).__name__ == "Abort":  # click's word for Ctrl-C (and SIGTERM) outside a command
+                stopped = exc.__context__
+                if isinstance(stopped, KeyboardInterrupt):
+                    _print_error(_stop_message(stopped))
+                    sys.exit(_stop_code(stopped))
                 _print_error("aborted")
                 sys.exit(1)
             raise
         if not standalone_mode:
             return rv
         sys.exit(rv if isinstance(rv, int) else 0)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt: the command stops the same
+    way (temporary files removed, nothing partial at an output path), with exit code 143."""
+
+
+def _stop_code(exc: KeyboardInterrupt) -> int:
+    return 143 if isinstance(exc, Terminated) else 130
+
+
+def _stop_message(exc: KeyboardInterrupt) -> str:
+    return "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts():
+    """While a command runs (in the main thread), SIGTERM raises :class:`Terminated`. A child process
+    that inherited the handler by fork ends as SIGTERM would end it, without the exception."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pid = os.getpid()
+
+    def handler(signum, frame):
+        if os.getpid() != pid:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        raise Terminated()
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def _no_such_option(exc) -> str | None:
@@ -136,8 +181,8 @@ def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             _fail(str(exc), code=1)
         except OSError as exc:  # a file we were asked to read or write cannot be
             _fail(f"{exc.filename or 'file'}: {os_reason(exc)}")
-        except KeyboardInterrupt:
-            _fail("interrupted", code=130)
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
+            _fail(_stop_message(exc), code=_stop_code(exc))
 
     return wrapper
 
@@ -204,7 +249,11 @@ def _report_capped(trajs, mdp, max_steps: int, model: str) -> int:
     """Say how many episodes ran to the step cap; warn when most did, and why."""
     from ..demos.simulation import capped_episodes
 
-    n, total = capped_episodes(trajs, mdp, max_steps), trajs.n_episodes
+    return _say_capped(capped_episodes(trajs, mdp, max_steps), trajs.n_episodes, max_steps, model)
+
+
+def _say_capped(n: int, total: int, max_steps: int, model: str) -> int:
+    """:func:`_report_capped` from the counts: ``n`` of ``total`` episodes hit the cap."""
     if n:
         _note(f"{n} of {plural(total, 'episode')} hit the {max_steps}-step cap without reaching a goal")
     if total and n > total / 2:

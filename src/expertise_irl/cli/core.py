@@ -24,6 +24,7 @@ from ._app import (
     _progress,
     _report_capped,
     _say,
+    _say_capped,
     _solve_progress,
     _warn,
     app,
@@ -159,10 +160,12 @@ def simulate(
     """Simulate a person with preferences θ* and expertise β*; write demonstrations CSV.
 
     The person acts by --model (default maxent, the paper's). Episodes that run to --max-steps
-    without reaching a goal are counted on stderr.
+    without reaching a goal are counted on stderr. More than 100,000 episodes are simulated and
+    written in batches of 100,000, with a size estimate first and a progress bar; the CSV appears
+    at --out only once complete (Ctrl-C or SIGTERM leave nothing there).
     """
-    from ..demos.csv_io import write_demos_csv
-    from ..demos.simulation import simulate as simulate_episodes
+    from ..demos.csv_io import demos_csv_stream, stream_format
+    from ..demos.simulation import BATCH_EPISODES, capped_episodes, simulate_batches
     from ..results import check_writable
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), mdp_path])
@@ -170,12 +173,51 @@ def simulate(
     th = _parse_theta(theta, mdp.n_features, mdp.feature_names, fixed_reward=mdp.has_offset)
     _check_beta(beta)
     _check_model(model)
-    trajs = simulate_episodes(mdp, th, beta, episodes, np.random.default_rng(seed), max_steps=max_steps,
-                              model=model)
-    write_demos_csv(out_path, trajs, mdp)
-    _say(f"wrote {out_path}: {plural(trajs.n_episodes, 'episode')}, {plural(len(trajs), 'action')} "
+    big = episodes > BATCH_EPISODES
+    fmt = stream_format(mdp) if big else "auto"  # (one batch: the format its episodes allow)
+    if big:
+        _size_estimate(out_path, mdp, th, beta, episodes, seed, max_steps, model, fmt)
+    n_actions = n_capped = 0
+    with demos_csv_stream(out_path, mdp, fmt=fmt) as write, _progress("episodes") as bar:
+        task = bar.add_task("simulating", total=episodes) if big else None
+        for trajs in simulate_batches(mdp, th, beta, episodes, np.random.default_rng(seed),
+                                      max_steps=max_steps, model=model):
+            write(trajs)
+            n_actions += len(trajs)
+            n_capped += capped_episodes(trajs, mdp, max_steps)
+            if task is not None:
+                bar.update(task, advance=trajs.n_episodes)
+    _say(f"wrote {out_path}: {plural(episodes, 'episode')}, {plural(n_actions, 'action')} "
          f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, model {model})")
-    _report_capped(trajs, mdp, max_steps, model)
+    _say_capped(n_capped, episodes, max_steps, model)
+
+
+def _size_estimate(out_path: Path, mdp, theta, beta: float, episodes: int, seed: int, max_steps: int,
+                   model: str, fmt: str) -> None:
+    """A note of the CSV's expected size and actions, from 1,000 trial episodes (their own random
+    stream: the run's episodes are not changed by it); a warning when the folder has less room."""
+    import shutil
+
+    from ..demos.csv_io import csv_bytes
+    from ..demos.simulation import simulate as simulate_episodes
+
+    trial = simulate_episodes(mdp, theta, beta, 1000, np.random.default_rng([seed, 1]), max_steps=max_steps,
+                              model=model)
+    size = csv_bytes(trial, mdp, fmt) * episodes / trial.n_episodes
+    actions = len(trial) * episodes / trial.n_episodes
+    _note(f"{episodes:,} episodes: about {_bytes(size)} and {actions:,.0f} actions to write to {out_path} "
+          "(estimated from 1,000 trial episodes)")
+    free = shutil.disk_usage(out_path.parent if str(out_path.parent) else Path(".")).free
+    if size > free:
+        _warn(f"{out_path.parent}: {_bytes(free)} free, less than the about {_bytes(size)} this run writes")
+
+
+def _bytes(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if n < 1000:
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"
 
 
 @app.command()

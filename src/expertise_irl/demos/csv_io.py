@@ -3,11 +3,15 @@ the grid ``episode,step,x,y`` (with an optional ``heading`` column in heading wo
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_open
 from ..errors import InputError, where
 from ..mdp import ACTION_DELTAS, TabularMDP
 from .csv_rows import parse_int, read_rows
@@ -71,11 +75,25 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
         such a grid and no move stays in its cell (a bump into a wall: x,y rows cannot say which
         way it went), else state.
     """
-    if fmt not in ("auto", "state", "grid"):
-        raise InputError(f"fmt must be 'auto', 'state' or 'grid', got {fmt!r}")
     validate(trajs, mdp)
     if len(trajs) == 0:
         raise InputError(f"{where(path)}no demonstrations to write")
+    fmt = _resolve_format(trajs, mdp, fmt, path)
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
+        out = csv.writer(fh, lineterminator="\n")
+        out.writerow(_header(mdp, fmt))
+        _write_rows(out, trajs, mdp, fmt)
+
+
+def _header(mdp: TabularMDP, fmt: str) -> tuple[str, ...]:
+    heading = fmt == "grid" and mdp.state_heading is not None
+    return _HEADERS[fmt] + ((HEADING_COLUMN,) if heading else ())
+
+
+def _resolve_format(trajs: Trajectories, mdp: TabularMDP, fmt: str, path) -> str:
+    """``fmt`` checked against the demonstrations (``"auto"`` decided as :func:`write_demos_csv` says)."""
+    if fmt not in ("auto", "state", "grid"):
+        raise InputError(f"fmt must be 'auto', 'state' or 'grid', got {fmt!r}")
     ep, step, s, a = trajs.episode, trajs.step, trajs.state, trajs.action
     stays = (mdp.next_state[s, a] == s) if mdp.state_heading is None else np.zeros(len(s), dtype=bool)
     if fmt == "auto":
@@ -86,24 +104,70 @@ def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, f
             i = int(np.argmax(stays))
             raise InputError(f"{where(path)}episode {int(ep[i])} step {int(step[i])}: the move stays in its "
                              "cell, which episode,step,x,y rows cannot say; write the state,action form")
-    heading = mdp.state_heading if fmt == "grid" else None
-    with open(path, "w", encoding="utf-8", newline="") as fh:
+    return fmt
+
+
+def _write_rows(out, trajs: Trajectories, mdp: TabularMDP, fmt: str) -> None:
+    """The rows of ``trajs`` in ``fmt`` (``"state"`` or ``"grid"``), whole episodes, to a csv writer."""
+    ep, step, s, a = trajs.episode, trajs.step, trajs.state, trajs.action
+    if fmt == "state":
+        out.writerows(np.stack([ep, step, s, a], axis=1).tolist())
+        return
+    heading = mdp.state_heading
+    xy = mdp.state_xy
+
+    def cell(state: int) -> list:
+        extra = [_HEADING_LETTERS[int(heading[state])]] if heading is not None else []
+        return [*xy[state].tolist(), *extra]
+
+    last = np.append(ep[1:] != ep[:-1], True)
+    for i in range(len(trajs)):
+        out.writerow([int(ep[i]), int(step[i]), *cell(s[i])])
+        if last[i]:
+            out.writerow([int(ep[i]), int(step[i]) + 1, *cell(mdp.next_state[s[i], a[i]])])
+
+
+def stream_format(mdp: TabularMDP) -> str:
+    """The format for demonstrations not yet made: ``"grid"`` when the MDP is such a grid and no
+    available move stays in its cell (so no episode can need the state form), else ``"state"``."""
+    if _cell_index(mdp) is None:
+        return "state"
+    if mdp.state_heading is not None:
+        return "grid"
+    return "state" if (mdp.next_state == np.arange(mdp.n_states)[:, None]).any() else "grid"
+
+
+@contextlib.contextmanager
+def demos_csv_stream(path: str | Path, mdp: TabularMDP, *, fmt: str = "auto") -> Iterator[Callable]:
+    """Write demonstrations batch by batch: yields ``write(trajs)``, to be called with whole episodes
+    in order; the file is written atomically (nothing at ``path`` until the block ends without an
+    error). ``fmt`` as in :func:`write_demos_csv` (``"auto"`` is decided on the first batch); returns
+    after writing at least one pair, else raises :class:`InputError`. ``write`` returns the bytes so far."""
+    state = {"fmt": fmt, "pairs": 0}
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
         out = csv.writer(fh, lineterminator="\n")
-        out.writerow(_HEADERS[fmt] + ((HEADING_COLUMN,) if heading is not None else ()))
-        if fmt == "state":
-            out.writerows(np.stack([ep, step, s, a], axis=1).tolist())
-            return
-        xy = mdp.state_xy
 
-        def cell(state: int) -> list:
-            extra = [_HEADING_LETTERS[int(heading[state])]] if heading is not None else []
-            return [*xy[state].tolist(), *extra]
+        def write(trajs: Trajectories) -> int:
+            validate(trajs, mdp)
+            if len(trajs):
+                first = state["pairs"] == 0
+                state["fmt"] = _resolve_format(trajs, mdp, state["fmt"], path)
+                if first:
+                    out.writerow(_header(mdp, state["fmt"]))
+                _write_rows(out, trajs, mdp, state["fmt"])
+                state["pairs"] += len(trajs)
+            return fh.tell()
 
-        last = np.append(ep[1:] != ep[:-1], True)
-        for i in range(len(trajs)):
-            out.writerow([int(ep[i]), int(step[i]), *cell(s[i])])
-            if last[i]:
-                out.writerow([int(ep[i]), int(step[i]) + 1, *cell(mdp.next_state[s[i], a[i]])])
+        yield write
+        if state["pairs"] == 0:
+            raise InputError(f"{where(path)}no demonstrations to write")
+
+
+def csv_bytes(trajs: Trajectories, mdp: TabularMDP, fmt: str) -> int:
+    """The bytes the rows of ``trajs`` take in ``fmt`` (no header): to estimate a file's size."""
+    buf = io.StringIO()
+    _write_rows(csv.writer(buf, lineterminator="\n"), trajs, mdp, fmt)
+    return len(buf.getvalue().encode("utf-8"))
 
 
 def _read_rows(path: str | Path, heading: bool = False) -> tuple[str, np.ndarray, np.ndarray,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from ..errors import InputError
@@ -122,6 +124,36 @@ def simulate(
     """
     lp = _policy(mdp, theta, beta, log_policy, model)
     st = check_start_states(mdp, starts)
+    rng = _check_counts(n_episodes, max_steps, rng)
+    return _walk(mdp, _policy_cdf(lp), st, int(n_episodes), int(max_steps), rng)
+
+
+#: :func:`simulate_batches` walks at most this many episodes at once.
+BATCH_EPISODES = 100_000
+
+
+def simulate_batches(mdp: TabularMDP, theta, beta, n_episodes: int, rng: np.random.Generator | int, *,
+                     max_steps: int = DEFAULT_MAX_STEPS, model: str = DEFAULT_MODEL,
+                     batch: int = BATCH_EPISODES) -> Iterator[Trajectories]:
+    """:func:`simulate`'s episodes in batches of at most ``batch`` (memory stays bounded however many
+    are asked for), episodes numbered on across batches. The policy is solved once and ``rng`` runs
+    on from batch to batch; with ``n_episodes <= batch`` the one batch is exactly :func:`simulate`'s
+    output for the same ``rng`` state."""
+    cdf = _policy_cdf(_policy(mdp, theta, beta, None, model))
+    st = check_start_states(mdp, None)
+    rng = _check_counts(n_episodes, max_steps, rng)
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise InputError(f"batch must be an integer >= 1, got {batch!r}")
+    done = 0
+    while done < n_episodes:
+        k = min(batch, int(n_episodes) - done)
+        t = _walk(mdp, cdf, st, k, int(max_steps), rng)
+        yield Trajectories(t.episode + done, t.step, t.state, t.action)
+        done += k
+
+
+def _check_counts(n_episodes, max_steps, rng) -> np.random.Generator:
+    """Refuse a bad episode count, step cap or ``rng``; the Generator to draw from."""
     if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) or n_episodes < 0:
         raise InputError(f"n_episodes must be an integer >= 0, got {n_episodes!r}")
     if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
@@ -130,7 +162,7 @@ def simulate(
         if isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
             raise InputError(f"rng must be a numpy Generator or a seed >= 0, got {rng!r}")
         rng = np.random.default_rng(int(rng))
-    return _walk(mdp, _policy_cdf(lp), st, int(n_episodes), int(max_steps), rng)
+    return rng
 
 
 def _policy(mdp: TabularMDP, theta, beta, log_policy, model: str) -> np.ndarray:

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import write_atomic
 from ..errors import InputError
 from .spec import (  # noqa: F401  (the study's spec, public here too)
     Column,
@@ -45,7 +46,6 @@ from .store import (
     progress,
     to_toml,
     versions,
-    write_atomic,
 )
 from .workers import (  # noqa: F401  (FAULTS_ENV, JAX_CACHE_ENV, execute_task: public here too)
     FAULTS_ENV,
@@ -101,7 +101,7 @@ def _record_run(store: Store, record: dict[str, Any], path: Path | None = None) 
     runs = store.root / "runs"
     runs.mkdir(exist_ok=True)
     path = path or runs / f"{record['started'].replace(':', '')}-{os.getpid()}.json"
-    write_atomic(path, (json.dumps(record, indent=2) + "\n").encode(), store.tmp)
+    write_atomic(path, json.dumps(record, indent=2) + "\n", tmp_dir=store.tmp)
     return path
 
 

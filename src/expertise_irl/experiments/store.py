@@ -29,13 +29,13 @@ import json
 import os
 import platform
 import socket
-import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from ..atomic import atomic_open, fsync_dir, write_atomic
 from ..errors import InputError
 
 MANIFEST = "manifest.json"
@@ -95,26 +95,6 @@ def versions() -> dict[str, str]:
 def machine() -> dict[str, Any]:
     return {"host": socket.gethostname(), "platform": platform.platform(),
             "processor": platform.machine(), "cpus": os.cpu_count()}
-
-
-def _fsync_dir(path: Path) -> None:
-    with contextlib.suppress(OSError):  # not every file system lets a directory be opened
-        fd = os.open(path, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-def write_atomic(path: Path, data: bytes, tmp_dir: Path) -> None:
-    """Write ``data`` to ``path`` so that readers see either nothing or the whole file."""
-    tmp = tmp_dir / f"{path.name}.{os.getpid()}.{time.monotonic_ns()}.part"
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-    _fsync_dir(path.parent)
 
 
 def _toml_value(v: Any) -> str:
@@ -183,8 +163,8 @@ class Store:
         if root.exists() and any(root.iterdir()):
             raise InputError(f"{root}: directory is not empty and holds no experiment; use another --out")
         self._make_dirs()
-        (root / "config.toml").write_text(config_toml)
-        write_atomic(root / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode(), self.tmp)
+        write_atomic(root / "config.toml", config_toml, tmp_dir=self.tmp)
+        write_atomic(root / MANIFEST, json.dumps(manifest, indent=2) + "\n", tmp_dir=self.tmp)
         return manifest
 
     @contextlib.contextmanager
@@ -233,23 +213,17 @@ class Store:
         sink = pa.BufferOutputStream()
         pq.write_table(arrow_table, sink, compression="zstd")
         data = sink.getvalue().to_pybytes()
-        path = self.shard(table, key)
-        tmp = self.tmp / f"{table}-{key}.{os.getpid()}.part"
-        with open(tmp, "wb") as fh:
+        with atomic_open(self.shard(table, key), "wb", tmp_dir=self.tmp) as fh:
             if before_rename is not None:
                 fh.write(data[: len(data) // 2])
                 fh.flush()
                 before_rename()
             fh.write(data[len(data) // 2:] if before_rename is not None else data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(path.parent)
 
     def remove(self, table: str, key: str) -> None:
         with contextlib.suppress(FileNotFoundError):
             self.shard(table, key).unlink()
-            _fsync_dir(self.table_dir(table))
+            fsync_dir(self.table_dir(table))
 
     def read(self, table: str, keys: Iterable[str] | None = None):
         """Concatenate the shards of ``table`` (all, or those of ``keys``) into one Arrow table."""

@@ -23,12 +23,12 @@ import functools
 import json
 import os
 import platform
-import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import NamedTuple
 
+from ..atomic import write_atomic
 from ..cache import user_cache_dir
 from ..errors import InputError
 
@@ -199,18 +199,12 @@ def _entry(v) -> dict | None:
 
 
 def _write(path: Path, table: dict) -> bool:
-    """Write the choices atomically (a temporary file renamed over the old one)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    """Write the choices atomically (:mod:`expertise_irl.atomic`); False if the cache cannot be written."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
-        os.replace(tmp, path)
+        write_atomic(path, json.dumps(table, indent=1, sort_keys=True) + "\n")
         return True
     except OSError:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
         return False
 
 

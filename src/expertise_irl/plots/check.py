@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import save_figure_atomic
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
@@ -107,6 +108,6 @@ def render_check_png(path: str | Path, doc: dict[str, Any], *, mdp: TabularMDP |
     """Save :func:`check_figure` to ``path`` (the format follows the suffix)."""
     fig = check_figure(doc, mdp=mdp, trajs=trajs, source=source)
     out = Path(path)
-    fig.savefig(out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    save_figure_atomic(fig, out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()
     return out

@@ -26,6 +26,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
+from ..atomic import save_figure_atomic
 from ..errors import InputError, plural
 from ..worlds.grid import FREE, GOAL, OBSTACLE, ROAD_DIRECTIONS, START
 from ..worlds.zones import AVOID, SLOW, TRAFFIC, ZoneMap
@@ -460,7 +461,7 @@ def map_size(zone_map: ZoneMap, max_w: float, max_h: float) -> tuple[float, floa
 
 def save_figure(fig: Figure, path: str | Path) -> Path:
     path = Path(path)
-    fig.savefig(path, dpi=DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    save_figure_atomic(fig, path, dpi=DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()
     return path
 

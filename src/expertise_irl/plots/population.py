@@ -18,8 +18,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..atomic import write_atomic
 from ..inference.posterior import beta_quantile
-from .userstudy import figure_png_bytes, figure_style, write_atomic
+from .userstudy import figure_png_bytes, figure_style
 
 INDEPENDENT = "#9bb5d9"
 POOLED = "#1c4f9c"

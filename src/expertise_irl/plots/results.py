@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullLocator
 
+from ..atomic import save_figure_atomic
 from ..errors import plural
 from ..hypotheses import GROUP_NAMES as GROUPS
 from ..results import SAMPLED, is_number, load_samples
@@ -310,7 +311,7 @@ def render_result_png(
     """Save :func:`result_figure` to ``path`` (the format follows the suffix; PNG at dpi 120)."""
     fig = result_figure(doc, source=source, mdp=mdp, zone_map=zone_map, trajs=trajs)
     out = Path(path)
-    fig.savefig(out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
+    save_figure_atomic(fig, out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()
     return out
 

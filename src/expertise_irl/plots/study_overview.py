@@ -23,9 +23,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
 
+from ..atomic import write_atomic
 from ..hypotheses import GROUP_BOUNDARIES, GROUP_NAMES
 from . import maps
-from .userstudy import DPI, figure_png_bytes, figure_style, write_atomic
+from .userstudy import DPI, figure_png_bytes, figure_style
 
 #: Row height (inches) for small studies, and the plot height a large study is squeezed into
 #: before rows get thinner than :data:`MIN_ROW`.

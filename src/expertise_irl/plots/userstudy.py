@@ -52,8 +52,6 @@ from __future__ import annotations
 
 import io
 import math
-import os
-import tempfile
 import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -71,6 +69,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FixedLocator, FuncFormatter, MaxNLocator, NullLocator
 
+from ..atomic import write_atomic
 from ..worlds.grid import GOAL
 from ..worlds.warehouse import WarehouseMap
 from ..worlds.zones import ZoneMap
@@ -888,21 +887,6 @@ def participant_png_bytes(participant: str, panels: Sequence[dict[str, Any]], do
     """The PNG of :func:`participant_figure` (what the figure workers ship back)."""
     with _DRAW_LOCK:
         return figure_png_bytes(participant_figure(participant, panels, doc))
-
-
-def write_atomic(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to a temporary file beside ``path``, then rename it onto ``path``: a reader
-    never sees half a file, and a crash leaves the old one (or none)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def render_participant_png(path: str | Path, participant: str, panels: Sequence[dict[str, Any]],

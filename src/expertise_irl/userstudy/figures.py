@@ -22,8 +22,9 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..atomic import write_atomic
 from ..errors import InputError
-from ..plots.userstudy import light_panel, participant_png_bytes, write_atomic
+from ..plots.userstudy import light_panel, participant_png_bytes
 
 #: One figure to draw: where its PNG goes, the participant, their task panels, their result document.
 Job = tuple[str | Path, str, Sequence[dict[str, Any]], dict[str, Any]]

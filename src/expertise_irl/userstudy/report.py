@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_open
 from ..inference.belief import DiscreteBelief
 from .paths import COUNTS, world_counts
 
@@ -70,13 +71,11 @@ def _fmt(v: Any) -> str:
 
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", encoding="utf-8", newline="") as fh:
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(columns)
         for r in rows:
             w.writerow([_fmt(r.get(c, math.nan)) for c in columns])
-    tmp.replace(path)
 
 
 #: The columns that close a row of ``study.csv`` and of ``tasks.csv``: groups, Table V-VI counts, ingestion.

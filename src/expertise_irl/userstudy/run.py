@@ -41,6 +41,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .. import __version__
+from ..atomic import write_atomic
 from ..errors import InputError
 from ..experiments import engine
 from ..hypotheses import GROUP_NAMES
@@ -893,7 +894,7 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         write_csv(out / "models.csv", model_evidence.models_rows(evidence),
                   model_evidence.models_columns(opts.models))
         md += model_evidence.evidence_markdown(evidence, opts.models, opts.model)
-    (out / "study.md").write_text(md, encoding="utf-8")
+    write_atomic(out / "study.md", md)
     return study_rows, jobs
 
 

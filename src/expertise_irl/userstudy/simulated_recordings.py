@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_open, atomic_path
 from ..demos.rosbag import BAG_SUFFIXES
 from ..demos.simulation import simulate
 from ..demos.trajectories import Trajectories
@@ -146,7 +147,7 @@ def write_recording(path: str | Path, episodes) -> int:
     if Path(path).suffix in BAG_SUFFIXES:
         return write_bag(path, episodes)
     n = 0
-    with open(path, "w", encoding="utf-8", newline="") as fh:
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["episode", "t", "x", "y"])
         for e, t, x, y in episodes:
@@ -219,5 +220,6 @@ def write_bag(path: str | Path, episodes, *, topic: str = "/odom", episode_topic
                                                      odometry))
                     n += 1
                 start = ns + round(BAG_EPISODE_PAUSE_S * 1e9)
-        os.replace(made, path)
+        with atomic_path(path) as final:
+            os.replace(made, final)
     return n

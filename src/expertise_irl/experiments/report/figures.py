@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...atomic import save_figure_atomic
 from .stats import mean_ci
 
 #: How captions name the intervals drawn.
@@ -49,8 +50,8 @@ def episodes_axis(ax) -> None:
 def save(fig, folder: Path, name: str) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     png, pdf = folder / f"{name}.png", folder / f"{name}.pdf"
-    fig.savefig(png, dpi=130, metadata={"Software": None})
-    fig.savefig(pdf, metadata={"CreationDate": None, "Producer": None, "Creator": None})
+    save_figure_atomic(fig, png, dpi=130, metadata={"Software": None})
+    save_figure_atomic(fig, pdf, metadata={"CreationDate": None, "Producer": None, "Creator": None})
     return [png, pdf]
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ...atomic import write_atomic
 from ...errors import InputError
 from .claims import claims_frame
 from .figures import save
@@ -54,7 +55,7 @@ def _marker(out: Path, study: str, files: list[str]) -> None:
     """The marker: what wrote the folder, the study and the files; no time, so that rebuilding a
     report from the same rows leaves the folder byte for byte as it was."""
     record = {"written_by": "expertise-irl experiment report", "study": study, "files": sorted(files)}
-    (out / MARKER).write_text(json.dumps(record, indent=2) + "\n")
+    write_atomic(out / MARKER, json.dumps(record, indent=2) + "\n")
 
 
 def write(report: Report, sweep, out: Path) -> Path:
@@ -71,12 +72,13 @@ def write(report: Report, sweep, out: Path) -> Path:
         (out / "tables").mkdir(exist_ok=True)
     for t in tables:
         path = out / "tables" / f"{t.name}.csv"
-        t.data.to_csv(path, index=False, float_format=FLOAT_FORMAT)
+        write_atomic(path, t.data.to_csv(index=False, float_format=FLOAT_FORMAT))
         files.append(str(path.relative_to(out)))
-    claims_frame(report.claims).to_csv(out / "claims.csv", index=False, float_format=FLOAT_FORMAT)
+    claims = claims_frame(report.claims).to_csv(index=False, float_format=FLOAT_FORMAT)
+    write_atomic(out / "claims.csv", claims)
     files.append("claims.csv")
     path = out / "report.md"
-    path.write_text(render(report, sweep))
+    write_atomic(path, render(report, sweep))
     files.append("report.md")
     _marker(out, report.study, files)
     return path

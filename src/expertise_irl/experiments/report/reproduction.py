@@ -22,6 +22,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+from ...atomic import write_atomic
 from .claims import DIFFERS, NO_DATA, NOT_JUDGED, NOT_REPRODUCED, REPRODUCED, WITHHELD
 from .sweep import DEFAULT_PROTOCOL
 
@@ -233,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{readme}: no {START} … {END} markers; printed the table instead, wrote nothing",
               file=sys.stderr)
         return 1
-    readme.write_text(new)
+    write_atomic(readme, new)
     print(f"{readme}: claims table written between the markers", file=sys.stderr)
     return 0
 
