@@ -34,6 +34,7 @@ def machine_info() -> dict[str, object]:
         "cpu": cpu,
         "cpu_flags": cpu_flags(),
         "cores": os.cpu_count(),
+        "load_average_1_5_15_min": [round(x, 2) for x in os.getloadavg()],  # other work on the machine
         "memory_gib": round(mem_gib, 1),
         "python": sys.version.split()[0],
         "numpy": np.__version__,
