@@ -54,39 +54,76 @@ def _check_prior_and_model(prior: str, model: str) -> None:
     check_model(model, "--model")
 
 
+def _check_concentration(prior: str, concentration: float | None) -> None:
+    from .priors import concentration_of
+
+    try:
+        concentration_of(prior, concentration)
+    except InputError as e:
+        raise InputError(f"--{e}") from None
+
+
 @dataclass(frozen=True)
 class DiscreteOptions:
     """The paper's hypothesis set Ψ = Θ × B under a uniform prior (Eq. 13)."""
 
-    thetas: str = "paper-real"  # a preset or comma-separated component values
-    betas: str = "paper-sim"  # a preset or comma-separated temperatures
+    thetas: str | None = None  # a preset or comma-separated component values (None: adaptive or paper-real)
+    betas: str | None = None  # a preset or comma-separated temperatures (None: adaptive or paper-sim)
     sample_thetas: int | None = None  # use k directions of Θ drawn with the seed
     per_action: bool = False  # record the estimate after every action (a trace)
     tol: float = 1e-8  # soft value iteration tolerance (nats)
     chunk_size: int | None = None  # hypotheses in flight in the solver
     model: str = DEFAULT_MODEL
     expertise: str = "stationary"  # or "changing": β_e per episode (inference.changing)
+    refine: bool | None = None  # refine the set (inference.adaptive); None: when no set is named
+    max_hypotheses: int = 20_000  # refinement's cap on hypotheses solved
 
     def __post_init__(self) -> None:
         if not (0 < self.tol <= MAX_TOL):
             raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {self.tol:g}")
         if self.expertise not in EXPERTISE:
             raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
+        if self.max_hypotheses < 1:
+            raise InputError(f"--max-hypotheses must be >= 1, got {self.max_hypotheses}")
+        if self.refine and self.expertise == "changing":
+            raise InputError("--refine follows the one-β posterior and cannot be used with --expertise "
+                             "changing, whose β grid must span every episode's β (name it with --betas)")
 
     max_draws = 0
 
+    @property
+    def named(self) -> bool:
+        """Whether a set was named (``thetas``, ``betas`` or ``sample_thetas``)."""
+        return self.thetas is not None or self.betas is not None or self.sample_thetas is not None
+
+    @property
+    def refines(self) -> bool:
+        """Whether the set is refined: as asked, else exactly when no set is named and β is one for
+        every episode (the refinement follows the one-β posterior, while a changing β's grid must
+        span every episode's β)."""
+        if self.refine is None:
+            return not self.named and self.expertise == "stationary"
+        return self.refine
+
     def hypotheses(self, n_features: int, seed: int = 0, note: Note = None):
-        """The set Ψ over ``n_features``; ``note`` hears when ``sample_thetas`` asks for too many."""
+        """The set Ψ over ``n_features`` (the start of the refinement when it :attr:`refines`);
+        ``note`` hears when ``sample_thetas`` asks for too many."""
         from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas, sample_thetas
 
-        th = resolve_thetas(self.thetas, n_features)
+        if not self.named:
+            if self.refines:
+                from .adaptive import start_set
+
+                return start_set(n_features)
+            return HypothesisSet(resolve_thetas("paper-real", n_features), resolve_betas("paper-sim"))
+        th = resolve_thetas(self.thetas or "paper-real", n_features)
         k = self.sample_thetas
         if k is not None:
             if k > len(th) and note is not None:
                 note(f"--sample-thetas {k} exceeds the {len(th)} directions of --thetas {self.thetas}; "
                      "using all of them")
             th = sample_thetas(th, min(k, len(th)), np.random.default_rng(seed))
-        return HypothesisSet(th, resolve_betas(self.betas))
+        return HypothesisSet(th, resolve_betas(self.betas or "paper-sim"))
 
 
 @dataclass(frozen=True)
@@ -130,9 +167,11 @@ class MAPOptions:
     prior: str = DEFAULT_PRIOR
     model: str = DEFAULT_MODEL
     expertise: str = "stationary"  # or "changing": also the learning curve (inference.trend)
+    concentration: float | None = None  # θ ~ Dirichlet(α); None: the prior's (priors.concentration_of)
 
     def __post_init__(self) -> None:
         _check_prior_and_model(self.prior, self.model)
+        _check_concentration(self.prior, self.concentration)
         if self.expertise not in EXPERTISE:
             raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
 
@@ -149,9 +188,11 @@ class NUTSOptions:
     prior: str = DEFAULT_PRIOR
     model: str = DEFAULT_MODEL
     expertise: str = "stationary"  # or "changing": also the learning curve's posterior (inference.trend)
+    concentration: float | None = None  # θ ~ Dirichlet(α); None: the prior's (priors.concentration_of)
 
     def __post_init__(self) -> None:
         _check_prior_and_model(self.prior, self.model)
+        _check_concentration(self.prior, self.concentration)
         if self.expertise not in EXPERTISE:
             raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
 
@@ -168,6 +209,7 @@ class DiscreteFit(NamedTuple):
     trace: Any  # Trace | None
     trace_index: tuple[np.ndarray, np.ndarray]  # episode and step of each traced action
     changing: Any = None  # --expertise changing: (ChangingPosterior, episode labels)
+    refined: Any = None  # the refined set's record and warnings (inference.adaptive.Refined)
 
 
 def _setup_discrete(mdp, opts: DiscreteOptions, seed: Seed, note: Note = None):
@@ -179,8 +221,14 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
     from .belief import DiscreteBelief
 
     hyp = _setup_discrete(mdp, opts, seed) if setup is None else setup
-    start = DiscreteBelief.from_mdp(mdp, hyp, tol=opts.tol, chunk_size=opts.chunk_size, model=opts.model,
-                                    progress=progress)
+    refined = None
+    if opts.refines:
+        refined = refined_set(mdp, trajs, hyp, opts, progress)
+        hyp = refined.hypotheses
+        start = DiscreteBelief.from_log_policy(hyp, refined.log_policy, prior=refined.prior)
+    else:
+        start = DiscreteBelief.from_mdp(mdp, hyp, tol=opts.tol, chunk_size=opts.chunk_size, model=opts.model,
+                                        progress=progress)
     post = start.update(trajs, per_action=opts.per_action)
     trace = start.trace(trajs) if opts.per_action else None
     changing = None
@@ -197,12 +245,22 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
             step_ll = np.asarray(start.log_policy)[:, trajs.state, trajs.action].T
             live = filtered_by_action(step_ll, index, hyp)
         changing = (cp, list(trajs.episode_ids), live)
-    return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing)
+    return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing, refined)
+
+
+def refined_set(mdp, trajs, start, opts: DiscreteOptions, progress: Progress = None):
+    """``start`` refined where the posterior of ``trajs`` has its mass (:func:`.adaptive.refine`)."""
+    from .adaptive import Refinement, refine, start_resolution
+
+    step = None if opts.named else 1 / start_resolution(mdp.n_features)
+    return refine(mdp, trajs, start, settings=Refinement(max_hypotheses=opts.max_hypotheses), theta_step=step,
+                  solve_kwargs={"tol": opts.tol, "chunk_size": opts.chunk_size, "model": opts.model},
+                  progress=progress)
 
 
 def _announce(mdp, opts, seed: Seed, note: Note = None) -> str:
     """The continuous methods' setup: the prior in words, told to ``note``."""
-    text = PRIORS[opts.prior].text
+    text = _prior_text(opts)
     if note is not None:
         note(f"prior ({opts.prior}): {text}; model {opts.model}")
     return text
@@ -230,7 +288,7 @@ def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None
 
     as_tasks(mdp, trajs)
     r = map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), progress=progress,
-                     prior=opts.prior, model=opts.model)
+                     prior=opts.prior, model=opts.model, concentration=opts.concentration)
     if opts.expertise == "changing":  # the one-β estimate stays the result's; the curve beside it
         from .trend import fit_trend
 
@@ -245,7 +303,7 @@ def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = No
     as_tasks(mdp, trajs)
     r = nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
                        num_chains=opts.chains, seed=seed, progress=progress, prior=opts.prior,
-                       model=opts.model)
+                       model=opts.model, concentration=opts.concentration)
     if opts.expertise == "changing":  # the one-β posterior stays the result's; the curve beside it
         from .trend import fit_trend_nuts
 
@@ -258,6 +316,9 @@ def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[s
     from .diagnostics import discrete_warnings
 
     out: dict[str, Any] = {"diagnostics": {"warnings": discrete_warnings(fit.posterior, names)}}
+    if fit.refined is not None:
+        out["refinement"] = fit.refined.record
+        out["diagnostics"]["warnings"] = fit.refined.warnings + out["diagnostics"]["warnings"]
     if fit.changing is not None:  # beside beta_hat, which stays the stationary estimate
         from .changing import changing_summary, expertise_by_episode, trend_summary
 
@@ -327,12 +388,20 @@ def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
         out["trend"]["log_posterior"] = curve["diagnostics"]["log_posterior"]
         return out
 
+    lap = r.laplace
     diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
-            "unavailable": map_unavailable(opts.starts)}
-    diag["warnings"] = map_warnings(diag, r.beta, PRIORS[opts.prior].beta_range)
+            "unavailable": map_unavailable(opts.starts),
+            "log_posterior_coordinates": "z, log β (θ = softmax(z); the mode of the density there)",
+            "intervals": "Laplace: Normal(mode, Hessian⁻¹) in (z, log β), mapped to (θ, β)",
+            "laplace": {k: lap.get(k) for k in ("positive_definite", "edge", "sd_log_beta", "ridge",
+                                                "theta_mean", "beta_mean", "min_curvature") if k in lap}}
+    if not lap["positive_definite"]:
+        diag["unavailable"]["credible_intervals"] = "the Laplace Hessian is not positive definite"
+    diag["warnings"] = map_warnings(diag, r.beta, PRIORS[opts.prior].beta_range, lap)
     return {
         "theta_hat": r.theta.tolist(), "beta_hat": r.beta,
         "map": {"theta": r.theta.tolist(), "beta": r.beta, "log_posterior": r.log_posterior},
+        **({"credible_intervals": lap["credible_intervals"]} if lap["positive_definite"] else {}),
         "diagnostics": diag,
     }
 
@@ -368,8 +437,13 @@ def _describe_nuts(r, opts: NUTSOptions, names) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- settings
 def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any]:
     hyp = fit.posterior.hypotheses
-    return {"thetas": opts.thetas, "betas": opts.betas, "sample_thetas": opts.sample_thetas,
-            "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform",
+    refined = fit.refined is not None
+    return {"thetas": opts.thetas or ("adaptive" if refined else "paper-real"),
+            "betas": opts.betas or ("adaptive" if refined else "paper-sim"),
+            "sample_thetas": opts.sample_thetas,
+            "hypotheses": "adaptive" if refined else "fixed", "max_hypotheses": opts.max_hypotheses,
+            "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
+            "prior": fit.refined.record["prior"] if refined else "uniform",
             "model": opts.model, "per_action": opts.per_action, "tol": opts.tol,
             "expertise": opts.expertise,
             **({"epsilons": list(fit.changing[0].epsilons.tolist()),
@@ -383,7 +457,20 @@ def _continuous_settings(fit, opts) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for cls in (BIRLOptions, MAPOptions, NUTSOptions):
         out.update(asdict(cls()))
-    return {**out, **asdict(opts), "prior_text": PRIORS[opts.prior].text}
+    mine = asdict(opts)
+    if "concentration" in mine:  # map, nuts: the α used (birl's θ is uniform: None)
+        from .priors import concentration_of
+
+        mine["concentration"] = concentration_of(opts.prior, opts.concentration)
+    return {**out, **mine, "prior_text": _prior_text(opts)}
+
+
+def _prior_text(opts) -> str:
+    """The prior in words: Algorithm 1's (θ uniform) for birl, θ's Dirichlet(α) for map and nuts."""
+    from .priors import prior_text
+
+    return prior_text(opts.prior, opts.concentration) if hasattr(opts, "concentration") else \
+        PRIORS[opts.prior].text
 
 
 # ----------------------------------------------------------------------------- registry

@@ -22,7 +22,10 @@ apart (``--check``):
 2. *not enough data to tell* with fewer than :data:`MIN_EPISODES` = 4 episodes or
    :data:`MIN_ACTIONS` = 40 actions, or when the richer reward's gain reaches :data:`GAIN_MIN`
    but not :data:`GAIN_Z` standard errors;
-3. *features explain the behaviour* otherwise.
+3. *features explain the behaviour* otherwise;
+4. *the hypothesis set was too coarse* when a named discrete set's posterior is judged (1) but the
+   same checks pass once the set is refined (:mod:`.adaptive`): the person lies between the set's
+   values, and no feature is missing. The refined estimate is recorded beside the verdict.
 """
 
 from __future__ import annotations
@@ -47,6 +50,8 @@ EXPLAINED = "features explain the behaviour"
 UNEXPLAINED = "behaviour the features do not explain"
 UNKNOWN = "not enough data to tell"
 VERDICTS = (EXPLAINED, UNEXPLAINED, UNKNOWN)
+#: The verdict of a named discrete set that the refined set explains (``infer`` alone refits).
+COARSE = "the hypothesis set was too coarse"
 
 GAIN_MIN = 0.02
 GAIN_Z = 2.0
@@ -287,14 +292,45 @@ def posterior_of_run(run, mdp: TabularMDP) -> dict[str, Any]:
             "draws_note": "the MAP point (no posterior draws): a plug-in check"}
 
 
+def refit_of_run(run, mdp: TabularMDP, trajs: Trajectories, opts):
+    """The ``refit`` of :func:`add_to_result` for a named discrete set that was not refined (None for any
+    other run): the named set joined with the default start set (:func:`.adaptive.start_set`) and refined,
+    its posterior, estimate and size."""
+    from .methods import DiscreteFit, refined_set
+
+    fit = run.result
+    if not isinstance(fit, DiscreteFit) or fit.refined is not None or fit.changing is not None:
+        return None
+
+    def refit():
+        from ..hypotheses import HypothesisSet, unique_rows
+        from .adaptive import start_set
+        from .belief import DiscreteBelief
+
+        named, coarse = fit.posterior.hypotheses, start_set(mdp.n_features)  # named, and the default start
+        both = HypothesisSet(unique_rows(np.concatenate([named.thetas, coarse.thetas])),
+                             np.concatenate([named.betas, coarse.betas]))
+        r = refined_set(mdp, trajs, both, opts)
+        b = DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior).update(trajs)
+        post = {"theta": b.hypotheses.theta, "beta": b.hypotheses.beta, "weights": b.probabilities,
+                "tables": [b.log_policy]}
+        return post, b.mean_theta, b.mean_beta, len(b.hypotheses)
+
+    return refit
+
+
 def episode_starts(trajs: Trajectories) -> np.ndarray:
     return np.array([s[0] for s, _ in trajs.episodes() if len(s)], dtype=np.int64)
 
 
 def add_to_result(doc: dict[str, Any], tasks: Sequence[tuple[TabularMDP, Trajectories]],
-                  posterior: dict[str, Any], *, check: str, model: str, seed: int = 0) -> None:
+                  posterior: dict[str, Any], *, check: str, model: str, seed: int = 0, refit=None) -> None:
     """Write ``diagnostics.identifiability`` and ``diagnostics.misspecification`` into the result ``doc``
-    and their warnings into ``diagnostics.warnings`` (nothing for ``check="off"``)."""
+    and their warnings into ``diagnostics.warnings`` (nothing for ``check="off"``).
+
+    ``refit``: for a named discrete set, ``refit() -> (posterior, theta_hat, beta_hat, n_hypotheses)`` of
+    the set refined (:mod:`.adaptive`); an *unexplained* verdict is then checked again there, and
+    becomes :data:`COARSE` if the refined set explains the behaviour."""
     from .identifiability import feature_identifiability
 
     if check_level(check) == "off":
@@ -310,6 +346,29 @@ def add_to_result(doc: dict[str, Any], tasks: Sequence[tuple[TabularMDP, Traject
     diag["identifiability"] = idents[0] if len(idents) == 1 else idents
     mis = misspecification(tasks, check=check, theta_hat=doc["theta_hat"], beta_hat=doc["beta_hat"],
                            model=model, seed=seed, **posterior)
+    if mis["verdict"] == UNEXPLAINED and refit is not None:
+        mis = _coarse_or_not(mis, tasks, refit, check=check, model=model, seed=seed)
     diag["misspecification"] = mis
     if mis["verdict"] == UNEXPLAINED:
         warnings.append(warning_of(mis, doc["beta_hat"]))
+    elif mis["verdict"] == COARSE:
+        warnings.append(f"{COARSE}: {mis['reason']}")
+
+
+def _coarse_or_not(mis: dict[str, Any], tasks, refit, *, check: str, model: str, seed: int) -> dict[str, Any]:
+    """An *unexplained* verdict of a named set checked again on the set refined (``refit()`` returns the
+    refined posterior, its estimate and its size): the verdict :data:`COARSE` when the behaviour is
+    explained there, the first verdict (with the refined one beside it) when it is not."""
+    post, theta_hat, beta_hat, size = refit()
+    again = misspecification(tasks, check=check, theta_hat=theta_hat, beta_hat=beta_hat, model=model,
+                             seed=seed, **post)
+    refined = {"n_hypotheses": size, "beta_hat": float(beta_hat), "theta_hat": [float(x) for x in theta_hat],
+               "verdict": again["verdict"], "reason": again["reason"]}
+    if again["verdict"] == UNEXPLAINED:
+        return {**mis, "refined": refined}
+    theta = ", ".join(f"{x:.3g}" for x in theta_hat)
+    return {**again, "verdict": COARSE, "first": {"verdict": mis["verdict"], "reason": mis["reason"]},
+            "refined": refined,
+            "reason": (f"on the named set {mis['reason']}, but refined to {size} hypotheses "
+                       f"(β̂ = {beta_hat:.3g}, θ̂ = [{theta}]) {again['reason']}: the person lies between "
+                       "the set's values; name a finer set or leave --thetas/--betas out to refine it")}

@@ -1,0 +1,180 @@
+"""Adaptive hypothesis sets (inference.adaptive): the lattice, exactness over the final set, caps,
+and the default of ``infer`` when no set is named."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from cli_helpers import invoke, ok
+
+from expertise_irl.demos.csv_io import write_demos_csv
+from expertise_irl.demos.simulation import simulate
+from expertise_irl.hypotheses import HypothesisSet
+from expertise_irl.inference import adaptive
+from expertise_irl.inference.adaptive import Refinement, refine, simplex_lattice, start_resolution, start_set
+from expertise_irl.inference.belief import DiscreteBelief
+from expertise_irl.inference.methods import DiscreteOptions
+from expertise_irl.worlds.zones import parse_map
+
+MAP = """
+S.....s...
+S..xx.....
+S..xx....G
+S.....tt..
+..>>>>>>..
+"""
+
+
+@pytest.fixture(scope="module")
+def mdp():
+    return parse_map(MAP, name="adaptive-test").to_mdp()
+
+
+@pytest.fixture(scope="module")
+def person(mdp):
+    """θ* from a Dirichlet and β* = 0.42 (between the start set's 0.316 and 1): on no grid."""
+    rng = np.random.default_rng(7)
+    theta = rng.dirichlet(np.ones(mdp.n_features))
+    return theta, 0.42, simulate(mdp, theta, 0.42, 25, rng, max_steps=200)
+
+
+@pytest.mark.parametrize(("K", "n"), [(2, 5), (3, 4), (5, 4)])
+def test_simplex_lattice_is_every_composition(K, n):
+    grid = simplex_lattice(K, n)
+    assert len(grid) == math.comb(n + K - 1, K - 1)
+    assert np.allclose(grid.sum(axis=1), 1.0) and (grid >= 0).all()
+    assert len(np.unique(np.round(grid * n).astype(int), axis=0)) == len(grid)
+    assert np.allclose(grid * n, np.round(grid * n))
+
+
+def test_start_set_is_small_and_covers_both_ends():
+    hyp = start_set(5)
+    assert start_resolution(5) == 4 and hyp.n_theta == 70  # C(8, 4)
+    assert hyp.betas[0] == pytest.approx(0.01) and hyp.betas[-1] == pytest.approx(10.0)
+    assert np.allclose(np.diff(np.log10(hyp.betas)), 0.5)
+    assert len(start_set(3).thetas) <= adaptive.START_THETAS_MAX
+
+
+def test_the_posterior_is_exact_over_the_final_set(mdp, person):
+    """The refined set's policies, stacked in its order, equal a fresh solve of that set, so the
+    posterior over it is Eq. 13 with the recorded prior weights."""
+    _, _, trajs = person
+    r = refine(mdp, trajs, start_set(mdp.n_features), theta_step=1 / start_resolution(mdp.n_features))
+    assert len(r.record["rounds"]) >= 2 and r.record["n_hypotheses"] == len(r.hypotheses)
+    mine = DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior).update(trajs)
+    fresh = DiscreteBelief.from_mdp(mdp, r.hypotheses, prior=r.prior).update(trajs)
+    np.testing.assert_allclose(mine.probabilities, fresh.probabilities, atol=1e-9)
+    # the last round's record is this posterior's
+    last = r.record["rounds"][-1]
+    assert last["beta_hat"] == pytest.approx(mine.mean_beta, rel=1e-9)
+    np.testing.assert_allclose(last["theta_hat"], mine.mean_theta, atol=1e-9)
+
+
+def test_refinement_reads_a_beta_between_the_grid_values(mdp, person):
+    """Off the grid, the refined β̂ is closer to β* than the start set's, and within a factor 1.6
+    (the posterior's 90% interval here is about ±25%; 1.6 is two of its half-widths)."""
+    _, beta, trajs = person
+    hyp = start_set(mdp.n_features)
+    coarse = DiscreteBelief.from_mdp(mdp, hyp).update(trajs)
+    r = refine(mdp, trajs, hyp, theta_step=1 / start_resolution(mdp.n_features))
+    fine = DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior).update(trajs)
+    assert abs(math.log(fine.mean_beta / beta)) < abs(math.log(coarse.mean_beta / beta))
+    assert abs(math.log(fine.mean_beta / beta)) < math.log(1.6)
+    assert r.hypotheses.n_beta > hyp.n_beta or r.record["pruned_mass"] > 0
+    assert r.warnings == [] and r.record["converged"]
+
+
+def test_the_prior_weighs_each_cell(mdp, person):
+    """Start hypotheses weigh 1; a θ refined l times 2^-(K-1)·l, a β 2^-l."""
+    _, _, trajs = person
+    r = refine(mdp, trajs, start_set(mdp.n_features), theta_step=0.25)
+    K = mdp.n_features
+    w = r.prior.reshape(r.hypotheses.n_theta, r.hypotheses.n_beta)
+    assert np.allclose(w / w[:, :1], w[:1] / w[0, 0])  # a product of a θ part and a β part
+    lt, lb = np.log2(w[:, 0] / w[:, 0].max()), np.log2(w[0] / w[0].max())
+    assert np.allclose(lt / (K - 1), np.round(lt / (K - 1))) and np.allclose(lb, np.round(lb))
+    assert lt.min() < 0 and lb.min() < 0  # both were refined
+
+
+def test_a_cap_stops_with_a_warning_and_the_posterior_so_far(mdp, person):
+    _, _, trajs = person
+    hyp = start_set(mdp.n_features)
+    r = refine(mdp, trajs, hyp, theta_step=0.25, settings=Refinement(max_hypotheses=len(hyp) + 5))
+    assert not r.record["converged"] and "--max-hypotheses" in r.record["stop_reason"]
+    assert len(r.warnings) == 1 and "stopped before the estimate settled" in r.warnings[0]
+    assert len(r.hypotheses) <= len(hyp)  # the start set, less what was pruned
+    start = DiscreteBelief.from_mdp(mdp, hyp).update(trajs)
+    mine = DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior).update(trajs)
+    assert mine.mean_beta == pytest.approx(start.mean_beta, rel=1e-6)
+
+
+def test_bad_settings_are_refused():
+    from expertise_irl.errors import InputError
+
+    with pytest.raises(InputError, match="tol_beta"):
+        Refinement(tol_beta=0)
+    with pytest.raises(InputError, match="max-hypotheses"):
+        DiscreteOptions(max_hypotheses=0)
+
+
+def test_a_named_set_is_used_as_given():
+    assert DiscreteOptions().refines and not DiscreteOptions(betas="0.1,1,10").refines
+    assert not DiscreteOptions(sample_thetas=5).refines and DiscreteOptions(betas="1", refine=True).refines
+    fixed = DiscreteOptions(refine=False).hypotheses(5)
+    assert (fixed.n_theta, fixed.n_beta) == (211, 6)  # paper-real Θ × paper-sim B, as before
+    hyp = DiscreteOptions(thetas="0,1", betas="0.1,1,10").hypotheses(5)
+    assert isinstance(hyp, HypothesisSet) and len(hyp) == 31 * 3
+
+
+def test_infer_refines_by_default_and_keeps_a_named_set(tmp_path, mdp, person):
+    _, _, trajs = person
+    npz, demos = tmp_path / "task.npz", tmp_path / "demos.csv"
+    mdp.save(npz)
+    write_demos_csv(demos, trajs, mdp)
+    ok(invoke("infer", "--mdp", npz, "--demos", demos, "--out", tmp_path / "a.json", "--check", "off"))
+    doc = json.loads((tmp_path / "a.json").read_text())
+    assert doc["settings"]["hypotheses"] == "adaptive" and doc["settings"]["thetas"] == "adaptive"
+    ref = doc["refinement"]
+    assert ref["n_hypotheses"] == doc["settings"]["n_hypotheses"] == len(doc["hypotheses"])
+    assert sum(r["solved"] for r in ref["rounds"]) == ref["solved"]
+    assert doc["beta_hat"] == pytest.approx(ref["rounds"][-1]["beta_hat"], rel=1e-9)
+    ok(invoke("infer", "--mdp", npz, "--demos", demos, "--out", tmp_path / "b.json", "--check", "off",
+              "--thetas", "0,0.5,1", "--betas", "0.1,1,10"))
+    doc = json.loads((tmp_path / "b.json").read_text())
+    assert "refinement" not in doc and doc["settings"]["hypotheses"] == "fixed"
+    assert doc["settings"]["n_hypotheses"] == 211 * 3
+
+
+def test_changing_expertise_keeps_the_paper_grid():
+    """A β per episode needs a grid spanning every episode's β, not the one-β posterior's refinement."""
+    from expertise_irl.errors import InputError
+
+    opts = DiscreteOptions(expertise="changing")
+    assert not opts.refines and len(opts.hypotheses(5)) == 1266
+    with pytest.raises(InputError, match="--expertise changing"):
+        DiscreteOptions(expertise="changing", refine=True)
+
+
+def test_a_coarse_named_set_is_told_from_missing_features(tmp_path):
+    """The README's example: β* = 0.5 lies between 0.1 and 1 of the named set, whose posterior fails
+    the predictive checks; refined, the same checks pass, so the verdict is a coarse set and there is
+    no missing-features warning."""
+    from expertise_irl.inference.misspecification import COARSE, UNEXPLAINED
+
+    demos, out = tmp_path / "demos.csv", tmp_path / "trace.json"
+    ok(invoke("simulate", "crossroads", "--theta", "0.5,0.5,0,0,0", "--beta", "0.5", "--episodes", "20",
+              "--seed", "1", "--out", demos))
+    res = invoke("infer", "crossroads", "--demos", demos, "--thetas", "0,0.5,1", "--betas", "0.1,1,10",
+                 "--out", out)
+    ok(res)
+    doc = json.loads(out.read_text())
+    mis = doc["diagnostics"]["misspecification"]
+    assert mis["verdict"] == COARSE and mis["first"]["verdict"] == UNEXPLAINED
+    assert 0.1 < mis["refined"]["beta_hat"] < 1.0 and mis["refined"]["n_hypotheses"] > 633
+    assert doc["beta_hat"] == pytest.approx(1.0, rel=1e-6)  # the named set's own estimate is kept
+    assert not any(w.startswith(UNEXPLAINED) for w in doc["diagnostics"]["warnings"])
+    assert any(w.startswith(COARSE) for w in doc["diagnostics"]["warnings"])
+    assert "too coarse" in res.output
