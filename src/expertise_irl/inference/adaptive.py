@@ -8,7 +8,7 @@ depends on θ/β only). :func:`refine` starts from a coarse set and refines it i
   values half its spacing away (in log β), down to :data:`BETA_MIN_STEP` decades; an end of the
   set holding :data:`EDGE_MASS` or more of the mass is extended by a coarse step, within
   :data:`BETA_LIMITS`.
-- **θ**, on the simplex: every θ of the smallest set holding 99% of the θ marginal (at most
+- **θ**, on the simplex: every θ of the smallest set holding 95% of the θ marginal (at most
   :data:`MAX_THETA_REFINE` a round) gets its neighbours θ ± (h/2)(e_i − e_j) at half its spacing
   h, down to :data:`THETA_MIN_STEP`, unless a neighbour lies past the posterior's 99.9% interval
   of a component by more than h.
@@ -47,18 +47,21 @@ from ..mdp import TabularMDP
 START_BETAS = tuple(float(10.0 ** e) for e in np.arange(-2.0, 1.01, 0.5))
 #: Spacing of the start β (decades of β).
 START_BETA_STEP = 0.5
-#: The range an extended set may reach (the continuous methods' log-uniform prior).
-BETA_LIMITS = (1e-3, 1e2)
+#: The range an extended set may reach: down to the continuous methods' 0.001, up to the paper's 10.
+#: Above 10 a person's choices at ‖θ‖₁ = 1 are so near uniform that the likelihood is flat (the paper
+#: found β* > 5 indistinguishable from 5): a set reaching 100 turns that flat tail into an E[β] of
+#: 20–40 for people of β* = 3–9 (benchmarks/off_grid.py), where the paper's grid reads 6–7.
+BETA_LIMITS = (1e-3, 10.0)
 #: The finest β spacing refinement makes (decades; 0.0156 ≈ 3.6% in β).
 BETA_MIN_STEP = 0.5 / 2**5
 #: The finest θ spacing refinement makes (per component).
 THETA_MIN_STEP = 1 / 64
 #: At most this many θ are refined in one round (the most probable first).
-MAX_THETA_REFINE = 6
+MAX_THETA_REFINE = 4
 #: At most this many β are refined in one round.
 MAX_BETA_REFINE = 4
 #: Mass of the β and θ marginals that refinement covers (the rest is its tail).
-BETA_COVER, THETA_COVER = 0.999, 0.99
+BETA_COVER, THETA_COVER = 0.999, 0.95
 #: An end of the β set holding this share of the β marginal is extended.
 EDGE_MASS = 0.01
 #: θ and β whose marginal mass falls below this leave the set.
@@ -67,8 +70,9 @@ PRUNE_MASS = 1e-10
 START_THETAS_MAX = 100
 #: Default cap on the policy tables the final set holds (bytes).
 MAX_POLICY_BYTES = 2 * 2**30
-#: Each round's new hypotheses are solved in a batch padded to a power of two, at least this many
-#: (the solver compiles once per batch shape, and JAX's cache keeps the few shapes across runs).
+#: Each round's new hypotheses are solved in one batch padded to the next of 64 × (1, 2, 3, 4, 5, 6, 8,
+#: 10, 12, 16, …) (at most a third more than needed): the solver compiles once per batch shape, and
+#: JAX's cache keeps the few shapes across runs.
 SOLVE_BUCKET = 64
 #: A change smaller than this share of the posterior's spread (sd of ln β, of θ) counts as settled,
 #: whatever the tolerance: it is small next to what the data leave unknown.
@@ -422,6 +426,16 @@ class Refined:
     warnings: list[str]
 
 
+def _buckets():
+    """64 × 1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, …: steps of at most a third."""
+    yield from (SOLVE_BUCKET, 2 * SOLVE_BUCKET, 3 * SOLVE_BUCKET)
+    scale = 1
+    while True:
+        for k in (4, 5, 6):
+            yield SOLVE_BUCKET * k * scale
+        scale *= 2
+
+
 def _solve_missing(pool: _Pool, mdp: TabularMDP, trajs: Trajectories, solve_kwargs: dict,
                    progress: Callable | None, done: int) -> int:
     """Solve the active hypotheses not solved yet; how many that was."""
@@ -432,7 +446,7 @@ def _solve_missing(pool: _Pool, mdp: TabularMDP, trajs: Trajectories, solve_kwar
     if not pairs:
         return 0
     n = len(pairs)
-    bucket = max(SOLVE_BUCKET, 1 << (n - 1).bit_length())  # a few shapes, each compiled once
+    bucket = next(b for b in _buckets() if b >= n)  # a few shapes, each compiled once
     padded = pairs + [pairs[-1]] * (bucket - n)
     theta = np.array([pool.thetas[i] for i, _ in padded])
     beta = np.array([pool.betas[j] for _, j in padded])
