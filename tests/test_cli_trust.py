@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_cli import assert_input_error, invoke, load, ok, snapshot
 
-from expertise_irl.inference.priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, PRIOR_TEXT, PRIORS
+from expertise_irl.inference.priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, PRIOR_TEXT, prior_text
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +91,7 @@ def test_prior_is_stated_in_help_output_and_result(one_episode, tmp_path):
     readme = " ".join((Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8").split())
     for words in (paper, default):
         assert words in help_text and words in readme, words
-    for prior, text in (("log-uniform", PRIOR_TEXT), ("paper", PRIORS["paper"].text)):
+    for prior, text in (("log-uniform", PRIOR_TEXT), ("paper", prior_text("paper"))):
         out = tmp_path / f"map-{prior}.json"
         result = invoke("infer", "corridor", "--demos", one_episode, "--method", "map", "--starts", "1",
                         "--prior", prior, "--out", out)
@@ -172,6 +172,7 @@ def test_notes_go_to_stderr(one_episode, tmp_path):
                     "--out", tmp_path / "r.json")
     ok(result)
     assert "note: --sample-thetas 500 exceeds" in result.stderr
+    assert "directions of --thetas paper-real; using all of them" in result.stderr  # the default, by name
     assert "note:" not in result.stdout
 
 

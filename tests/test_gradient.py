@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import jax
@@ -130,18 +131,30 @@ def grid(toy_data):
     return grid_posterior(*toy_data)
 
 
-@pytest.mark.parametrize("prior", ["log-uniform", "paper"])
-def test_map_matches_the_grid_optimum(toy_data, prior):
+@pytest.mark.parametrize("prior,alpha", [("log-uniform", 1.0), ("log-uniform", 2.0), ("paper", 1.0)])
+def test_map_matches_the_grid_optimum(toy_data, prior, alpha):
+    """MAP is the mode of the posterior density in its coordinates (z, log β): on the grid, the
+    density on (θ, β) times ∏θ_i^α (θ's Dirichlet(α) in z, its scale maximised out) times β
+    (the Jacobian of log β)."""
     mdp, trajs = toy_data
     T, B, lp, _, _ = grid_posterior(*toy_data, prior=prior)
-    i = np.unravel_index(np.argmax(lp), lp.shape)
-    res = map_estimate(mdp, trajs, n_starts=3, rng=np.random.default_rng(0), prior=prior)
+    with np.errstate(divide="ignore"):
+        lp_x = lp + alpha * (np.log(T) + np.log(1 - T)) + np.log(B)
+    i = np.unravel_index(np.argmax(lp_x), lp_x.shape)
+    res = map_estimate(mdp, trajs, n_starts=3, rng=np.random.default_rng(0), prior=prior,
+                       concentration=alpha)
     # The grid spacing is 0.005 in t and 2.6% in β: the continuous optimum lies within one
-    # cell of the best grid point, and its log-posterior is at least as high.
+    # cell of the best grid point, and its log-posterior is at least as high (z's scale at its
+    # optimum adds K·α·log(K·α) − K·α to the grid's density).
     assert res.theta[0] == pytest.approx(T[i], abs=0.005)
     assert res.beta == pytest.approx(B[i], rel=0.03)
-    assert res.log_posterior >= lp[i] - 1e-6
-    assert len(res.optima) == 3 and res.evaluations > 3
+    assert res.log_posterior - (2 * alpha * math.log(2 * alpha) - 2 * alpha) >= lp_x[i] - 1e-6
+    assert len(res.optima) == 3 and res.evaluations > 3 and res.concentration == alpha
+    # The toy posterior is nearly Gaussian in (z, log β): a positive definite Laplace Hessian,
+    # an interval around β̂ and no ridge.
+    lap = res.laplace
+    assert lap["positive_definite"] and lap["ridge"] is None
+    assert lap["credible_intervals"]["beta"][0] < res.beta < lap["credible_intervals"]["beta"][1]
 
 
 def test_nuts_matches_the_grid_posterior_means(toy_data, grid):
@@ -187,12 +200,15 @@ def test_bad_options():
 
 
 def test_the_prior_shows_in_the_result():
-    """One expert episode says little about β: the paper's prior pulls β̂ towards 5, the default
-    (log-uniform) does not."""
+    """One expert episode says little about β. The default prior is flat in log β, the MAP's
+    coordinate, so it leaves β̂ inside its range where the likelihood puts it (its density in β,
+    ∝ 1/β, would have put the mode on the lower edge, 0.001); the paper's prior, in log β
+    N(β; 5.005, 1.5)·β, rises everywhere below 5.4 and pulls β̂ up from there."""
     mdp = load_bundled("crossroads").to_mdp()
     trajs = simulate(mdp, [1.0, 0, 0, 0, 0], 0.05, 1, np.random.default_rng(0))
     paper = map_estimate(mdp, trajs, n_starts=2, rng=np.random.default_rng(0), prior="paper")
     default = map_estimate(mdp, trajs, n_starts=2, rng=np.random.default_rng(0))
-    assert paper.beta > 3 * default.beta
+    assert 0.01 < default.beta < 1.0
+    assert paper.beta > default.beta
     with pytest.raises(InputError, match="prior must be one of log-uniform, paper"):
         map_estimate(mdp, trajs, n_starts=1, rng=np.random.default_rng(0), prior="flat")

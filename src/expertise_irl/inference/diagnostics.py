@@ -41,6 +41,8 @@ R_HAT_MAX = 1.01
 ESS_PER_CHAIN_MIN = 100
 ACCEPTANCE_MIN = 0.05
 MAP_AGREE_NATS = 0.1
+#: β̂ within this relative margin of the prior's range's edge is on the edge.
+MAP_EDGE_MARGIN = 0.05
 EDGE_MASS = 0.10
 THETA_EDGE_MASS = 0.5
 _MIN_DRAWS = 4  # ArviZ's minimum draws per chain for R-hat and ESS
@@ -291,8 +293,11 @@ def birl_warnings(diag: dict[str, Any], feature_names, stuck=None) -> list[str]:
                                    unmixed="the two halves of the chain disagree", stuck=stuck)
 
 
-def map_warnings(diag: dict[str, Any], beta: float, beta_range: tuple[float, float]) -> list[str]:
-    """Warnings of a MAP run: starts that disagree, β̂ on the edge of the prior's range."""
+def map_warnings(diag: dict[str, Any], beta: float, beta_range: tuple[float, float],
+                 laplace: dict[str, Any] | None = None) -> list[str]:
+    """Warnings of a MAP run: starts that disagree, β̂ within :data:`MAP_EDGE_MARGIN` of an edge of
+    the prior's range, and from ``laplace`` (:func:`~.laplace.laplace_summary`) a flat ridge or a
+    Hessian that is not positive definite."""
     out = []
     optima = np.asarray(diag["optima"], dtype=float)
     if len(optima) >= 2:
@@ -304,9 +309,45 @@ def map_warnings(diag: dict[str, Any], beta: float, beta_range: tuple[float, flo
                        f"{gaps.min():.3g}–{gaps.max():.3g} nats lower): the optimum may be local; "
                        "try more --starts")
     lo, hi = beta_range
-    if beta <= lo * (1 + 1e-3) or beta >= hi * (1 - 1e-3):
-        out.append(f"β̂ = {beta:.4g} is on the edge of the prior's range [{lo:g}, {hi:g}]: "
-                   "the data ask for a β the prior excludes")
+    interval = "" if not (laplace or {}).get("positive_definite") else (
+        "; its Laplace 90% interval is [{:.3g}, {:.3g}]".format(*laplace["credible_intervals"]["beta"]))
+    if beta <= lo * (1 + MAP_EDGE_MARGIN) or beta >= hi / (1 + MAP_EDGE_MARGIN):
+        side = "lower" if beta <= lo * (1 + MAP_EDGE_MARGIN) else "upper"
+        out.append(f"β̂ = {beta:.4g} is on the {side} edge of the prior's range [{lo:g}, {hi:g}]: the data "
+                   f"ask for a β the prior excludes, so β̂ is the prior's bound, not the data's{interval}")
+    if laplace is not None and not laplace["positive_definite"]:
+        out.append(f"the Laplace Hessian at the MAP is not positive definite (curvature "
+                   f"{laplace['min_curvature']:.3g}): the point may be a saddle or on a flat ridge; "
+                   "no interval")
+    elif laplace is not None and laplace.get("ridge"):
+        r = laplace["ridge"]
+        out.append(f"the MAP lies on a flat ridge (Laplace curvature {r['curvature']:.2g} along one "
+                   "direction, "
+                   f"whose 90% interval moves θ by up to {r['theta_change']:.2f} and β by a factor "
+                   f"{r['beta_factor']:.3g}): many nearly equally likely points; see credible_intervals or "
+                   "use --method nuts")
+    return out
+
+
+def map_description(r, n_starts: int, beta_range: tuple[float, float]) -> dict[str, Any]:
+    """A MAP run's ``diagnostics`` (starts, optima, evaluations, the Laplace approximation's
+    summary, warnings) and, where its Hessian is positive definite, its Laplace 90%
+    ``credible_intervals``; ``r`` has ``starts``, ``optima``, ``evaluations``, ``beta`` and
+    ``laplace`` (:func:`~.laplace.laplace_summary`)."""
+    lap = r.laplace
+    diag: dict[str, Any] = {
+        "starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
+        "unavailable": map_unavailable(n_starts),
+        "log_posterior_coordinates": "z, log β (θ = softmax(z)): the mode of the density there",
+        "intervals": "Laplace: Normal(mode, Hessian⁻¹) in (z, log β), mapped to (θ, β)",
+        "laplace": {k: lap[k] for k in ("positive_definite", "edge", "sd_log_beta", "ridge", "theta_mean",
+                                        "beta_mean", "min_curvature") if k in lap}}
+    if not lap["positive_definite"]:
+        diag["unavailable"]["credible_intervals"] = "the Laplace Hessian is not positive definite"
+    diag["warnings"] = map_warnings(diag, r.beta, beta_range, lap)
+    out: dict[str, Any] = {"diagnostics": diag}
+    if lap["positive_definite"]:
+        out["credible_intervals"] = lap["credible_intervals"]
     return out
 
 

@@ -1,14 +1,26 @@
 """Gradient-based estimators on the continuous space: MAP by quasi-Newton (NUTS: :mod:`.nuts`).
 
 The parameters are θ on the unit simplex (‖θ‖₁ = 1 fixes the scale: (θ, β) and (cθ, cβ)
-behave alike) and β > 0. Both optimisers work on unconstrained coordinates,
+behave alike) and β > 0. The optimiser works on unconstrained coordinates x = (z, b),
 θ = softmax(z) and β = exp(b), with the log-density and its exact gradient from
 :func:`expertise_irl.planning.differentiable.make_log_likelihood`.
 
-Priors by name (:mod:`expertise_irl.inference.priors`): ``log-uniform`` (the default: θ
-uniform on the simplex, log β uniform on [1e-3, 1e2]) or ``paper`` (Sec. VII-A: β ~
-Normal(5.005, 1.5) truncated to [0.01, 10]). Any other prior can be passed as a
-JAX-traceable ``log_prior(theta, beta)``.
+**MAP is the mode of the posterior density in x**, not in (θ, β): a mode moves when the
+coordinates change, and where the likelihood is nearly flat the prior's shape in the chosen
+coordinates decides it. The prior is therefore written in x (:func:`.priors.log_prior_unconstrained`):
+b's density is p(β)·β (flat for the default ``log-uniform`` prior, whose density in β would put
+the mode at β's lower edge) and z's is Σ_i (α z_i − e^{z_i}), whose push-forward is θ ~
+Dirichlet(α); maximised over z's free scale it leaves ∏θ_i^α. So MAP maximises
+L(θ, β)·∏θ_i^α·p(β)·β, α the ``concentration``.
+
+Priors by name (:mod:`expertise_irl.inference.priors`): ``log-uniform`` (the default: θ ~
+Dirichlet(α) on the simplex, log β uniform on [1e-3, 1e2]) or ``paper`` (Sec. VII-A: θ uniform,
+β ~ Normal(5.005, 1.5) truncated to [0.01, 10]). Any other prior can be passed as a
+JAX-traceable density on (θ, β), ``log_prior(theta, beta)``, which is written in x as
+:func:`.priors.unconstrained_from_density` says.
+
+At the optimum, the Laplace approximation (:mod:`.laplace`) gives the curvature, 90% intervals
+and a check for a flat ridge.
 """
 
 from __future__ import annotations
@@ -27,7 +39,17 @@ from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
-from .priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, DEFAULT_PRIOR, get_prior, log_prior_jax
+from .laplace import hessian, laplace_summary
+from .priors import (
+    BETA_PRIOR_MEAN,
+    BETA_PRIOR_SD,
+    DEFAULT_PRIOR,
+    concentration_of,
+    get_prior,
+    log_prior_jax,
+    log_prior_unconstrained,
+    unconstrained_from_density,
+)
 from .task_likelihood import as_tasks, tasks_log_likelihood
 
 __all__ = ["BETA_PRIOR_MEAN", "BETA_PRIOR_SD", "MAPResult", "credible_intervals", "map_estimate",
@@ -44,10 +66,15 @@ class MAPResult:
     Attributes:
         theta: ``[K]`` θ̂ on the simplex.
         beta: β̂.
-        log_posterior: the unnormalised log-posterior at the optimum.
+        log_posterior: the unnormalised log-posterior density at the optimum, in the optimiser's
+            coordinates x = (z, b) (the module docstring).
         starts: ``[n_starts, K + 1]`` the (θ, β) each run started from.
         optima: ``[n_starts]`` log-posterior each run reached (the best is reported).
-        evaluations: total likelihood-and-gradient evaluations.
+        evaluations: total likelihood-and-gradient evaluations (the Hessian's included).
+        x: ``[K + 1]`` the optimum in x = (z, b).
+        hessian: ``[K + 1, K + 1]`` the Hessian of the negative log posterior in x there.
+        laplace: :func:`.laplace.laplace_summary` of the Gaussian Normal(x, hessian⁻¹).
+        concentration: θ's Dirichlet concentration α (None for a ``log_prior`` given by the caller).
     """
 
     theta: np.ndarray
@@ -56,16 +83,22 @@ class MAPResult:
     starts: np.ndarray
     optima: np.ndarray
     evaluations: int
+    x: np.ndarray | None = None
+    hessian: np.ndarray | None = None
+    laplace: dict | None = None
+    concentration: float | None = None
 
 
 class MultiStart(NamedTuple):
     """What :func:`multistart_lbfgsb` found: the best run, each start's recorded point and optimum
-    (the negated minimum), and the objective's evaluations in all."""
+    (the negated minimum), the objective's evaluations in all, and the compiled
+    ``value_and_grad(x)``."""
 
     best: Any  # scipy.optimize.OptimizeResult
     starts: np.ndarray
     optima: np.ndarray
     evaluations: int
+    value_and_grad: Callable | None = None
 
 
 def multistart_lbfgsb(objective, draw_start, n_starts: int, bounds, *, maxiter: int = 500,
@@ -96,7 +129,7 @@ def multistart_lbfgsb(objective, draw_start, n_starts: int, bounds, *, maxiter: 
             best = res
         if progress is not None:
             progress(i + 1, n_starts)
-    return MultiStart(best, np.array(starts), np.array(optima), evaluations)
+    return MultiStart(best, np.array(starts), np.array(optima), evaluations, value_and_grad)
 
 
 def _unpack(x):
@@ -116,16 +149,22 @@ def map_estimate(
     progress: Callable[[int, int], None] | None = None,
     prior: str = DEFAULT_PRIOR,
     model: str = DEFAULT_MODEL,
+    concentration: float | None = None,
 ) -> MAPResult:
-    """Maximise log P(Ξ | θ, β) + log P(θ, β) by L-BFGS-B from ``n_starts`` random starts.
+    """Maximise log P(Ξ | θ, β) + log p(z, b), the log posterior density in x = (z, b), by
+    L-BFGS-B from ``n_starts`` random starts, then take the Laplace approximation there.
 
-    Starts: θ uniform on the simplex, log β uniform on ``log beta_range``. The β search is
-    bounded to ``beta_range`` (default: the support of ``prior``); θ moves freely on the
-    simplex (components approach 0 as z → −∞). ``prior`` names the prior
-    (``"log-uniform"`` or ``"paper"``) unless ``log_prior`` is given; ``model`` is the
-    observation model. ``mdp`` and ``trajs`` may be equal-length lists, one per task of the
-    same person: the log-likelihoods are summed.
-    ``progress(done, n_starts)`` is called after each start.
+    The prior ``prior`` (``"log-uniform"`` or ``"paper"``) with θ's Dirichlet concentration
+    ``concentration`` (default: the prior's, :func:`.priors.concentration_of`) is written in x
+    by :func:`.priors.log_prior_unconstrained`; a ``log_prior(theta, beta)`` given instead is a
+    density on (θ, β), written in x by :func:`.priors.unconstrained_from_density`. Either way the
+    optimum maximises L·∏θ_i^α·p(β)·β (α = 1 for a given ``log_prior``, whose own θ density is
+    part of it). Starts: θ uniform on the simplex, log β uniform on ``log beta_range``. The β
+    search is bounded to ``beta_range`` (default: the support of ``prior``); θ moves freely on
+    the simplex. ``model`` is the observation model. ``mdp`` and ``trajs`` may be equal-length
+    lists, one per task of the same person: the log-likelihoods are summed.
+    ``progress(done, n_starts)`` is called after each start. ``rng`` also draws the Laplace
+    Gaussian's samples (θ's intervals), after the starts.
     """
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
@@ -133,7 +172,11 @@ def map_estimate(
     lo, hi = beta_range
     if not 0 < lo < hi:
         raise InputError(f"beta_range must satisfy 0 < low < high, got {beta_range}")
-    log_prior = log_prior_jax(prior) if log_prior is None else log_prior
+    if log_prior is None:
+        alpha = concentration_of(prior, concentration)
+        prior_x = log_prior_unconstrained(prior, alpha)
+    else:
+        alpha, prior_x = None, unconstrained_from_density(log_prior)
     f = tasks_log_likelihood(mdp, trajs, tol=tol, model=model)
     K = as_tasks(mdp, trajs)[0][0].n_features
 
@@ -141,7 +184,7 @@ def map_estimate(
     def objective(x):
         theta, beta = _unpack(x)
         ll, _ = f(theta, beta)
-        return -(ll + log_prior(theta, beta))
+        return -(ll + prior_x(x[:-1], x[-1]))
 
     def draw_start():
         theta0 = rng.dirichlet(np.ones(K))
@@ -151,9 +194,13 @@ def map_estimate(
 
     bounds = [(None, None)] * K + [(math.log(lo), math.log(hi))]
     run = multistart_lbfgsb(objective, draw_start, n_starts, bounds, progress=progress)
-    theta, beta = _unpack(jnp.asarray(run.best.x))
+    x = np.asarray(run.best.x, dtype=np.float64)
+    grad = lambda y: np.asarray(run.value_and_grad(jnp.asarray(y))[1])  # noqa: E731
+    H = hessian(grad, x)
+    laplace = laplace_summary(x, H, grad(x), (lo, hi), rng)
+    theta, beta = _unpack(jnp.asarray(x))
     return MAPResult(np.asarray(theta), float(beta), float(-run.best.fun), run.starts, run.optima,
-                     run.evaluations)
+                     run.evaluations + 2 * x.size + 1, x, H, laplace, alpha)
 
 
 def credible_intervals(theta: np.ndarray, beta: np.ndarray, prob: float = 0.9) -> dict:

@@ -111,12 +111,16 @@ def nuts_posterior(
     warm_start: bool = False,
     laplace_init: bool = True,
     target_accept: float = 0.8,
+    concentration: float | None = None,
 ) -> NUTSResult:
     """Sample P(θ, β | Ξ) with NUTS on the same log-density as :func:`map_estimate`.
 
-    ``prior`` names the prior (``"log-uniform"``, the default: a flat Dirichlet on the simplex
-    for θ and log β uniform on [1e-3, 1e2]; ``"paper"``: β ~ Normal(5.005, 1.5) truncated to
+    ``prior`` names the prior (``"log-uniform"``, the default: θ ~ Dirichlet(α) on the simplex,
+    α = ``concentration`` or the prior's default (:func:`.priors.concentration_of`), and log β
+    uniform on [1e-3, 1e2]; ``"paper"``: θ uniform, β ~ Normal(5.005, 1.5) truncated to
     [0.01, 10]); ``theta_prior``/``beta_prior`` (NumPyro distributions) replace either part.
+    The draws are of the posterior on (θ, β) whatever the sampler's coordinates (their
+    Jacobians are in the potential), so its means do not depend on them as MAP's mode does.
     ``model`` is the observation model. ``mdp`` and ``trajs`` may be equal-length lists, one
     per task of the same person: the log-likelihoods are summed.
 
@@ -135,7 +139,7 @@ def nuts_posterior(
     num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
     f = tasks_log_likelihood(mdp, trajs, tol=tol, model=model)
     first = as_tasks(mdp, trajs)[0][0]
-    named_theta, named_beta = numpyro_priors(prior, first.n_features)
+    named_theta, named_beta = numpyro_priors(prior, first.n_features, concentration)
     theta_prior = named_theta if theta_prior is None else theta_prior
     beta_prior = named_beta if beta_prior is None else beta_prior
     # The counts are an argument of every compiled program, not a constant in it: programs for

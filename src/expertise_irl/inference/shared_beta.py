@@ -7,11 +7,12 @@ still one β, and each task has its own θ_t on the simplex. The log-posterior i
 
     Σ_t log P(Ξ_t | θ_t, β) + Σ_t log p(θ_t) + log p(β),
 
-with the named prior's parts (:mod:`.priors`): each θ_t has the prior's θ part (flat on the
-simplex for every named prior) and β the prior's β part.
+with the named prior's parts (:mod:`.priors`): each θ_t has the prior's θ part (Dirichlet(α),
+α the ``concentration``) and β the prior's β part.
 
-- :func:`map_shared_beta` maximises it as :func:`~.gradient.map_estimate` does: θ_t =
-  softmax(z_t), β = exp(b), L-BFGS-B on the exact gradient with b bounded to the prior's range,
+- :func:`map_shared_beta` maximises it as :func:`~.gradient.map_estimate` does, as a density in
+  its coordinates θ_t = softmax(z_t), β = exp(b) (:func:`~.priors.log_prior_unconstrained`, each
+  z_t's part Σ_i (α z_ti − e^{z_ti})), L-BFGS-B on the exact gradient with b bounded to the prior's range,
   from ``n_starts`` random starts (each θ_t uniform on the simplex, log β uniform). With one
   task the starts, the objective and so the optimum are ``map_estimate``'s.
 - :func:`nuts_shared_beta` samples it with NumPyro's NUTS through the same kernel and chain
@@ -45,7 +46,15 @@ from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from .gradient import multistart_lbfgsb
-from .priors import DEFAULT_PRIOR, get_prior, log_prior_jax, numpyro_priors
+from .laplace import hessian, laplace_summary
+from .priors import (
+    DEFAULT_PRIOR,
+    concentration_of,
+    get_prior,
+    log_prior_jax,
+    log_prior_unconstrained,
+    numpyro_priors,
+)
 from .task_likelihood import as_tasks, pair_counts
 
 __all__ = ["PerTaskSum", "SharedBetaMAP", "SharedBetaNUTS", "fit_shared_beta", "map_shared_beta",
@@ -108,32 +117,27 @@ def shared_beta_log_likelihood(mdps, trajs, *, tol: float = 1e-10, max_iter: int
                        for m, t in _tasks(mdps, trajs)])
 
 
-def _separable_prior(prior: str, n_features: int) -> Callable:
+def _separable_prior(prior: str, concentration: float | None = None) -> Callable:
     """``log p(thetas [T, K], beta)`` up to a constant: the named prior's β part (as
-    :func:`~.priors.log_prior_jax` gives it, −∞ outside its range) and its θ part per task.
-
-    Every named prior is flat on the simplex in θ (a Dirichlet(1, …, 1)), so the θ parts are
-    constants; a prior that is not would need its θ density here, so it is refused.
-    """
-    import numpyro.distributions as dist
-
-    theta_prior, _ = numpyro_priors(prior, n_features)
-    if not (isinstance(theta_prior, dist.Dirichlet) and np.all(np.asarray(theta_prior.concentration) == 1.0)):
-        raise InputError(f"prior {prior!r}: sharing β needs a θ prior flat on the simplex")
-    joint = log_prior_jax(prior)  # a function of β alone (θ flat): it is log p(β)
+    :func:`~.priors.log_prior_jax` gives it, −∞ outside its range) and its θ part,
+    (α − 1)·Σ log θ_tk, per task."""
+    a = concentration_of(prior, concentration)
+    beta_part = log_prior_jax(prior, 1.0)  # a function of β alone: it is log p(β)
 
     def log_prior(thetas, beta):
-        return joint(thetas[0], beta)
+        lp = beta_part(thetas[0], beta)
+        return lp if a == 1 else lp + (a - 1) * jnp.sum(jnp.log(thetas))
 
     return log_prior
 
 
 def shared_beta_log_posterior(mdps, trajs, *, prior: str = DEFAULT_PRIOR, model: str = DEFAULT_MODEL,
-                              tol: float = 1e-10) -> Callable:
+                              tol: float = 1e-10, concentration: float | None = None) -> Callable:
     """``g(thetas [T, K], beta)``: Σ_t log P(Ξ_t | θ_t, β) + Σ_t log p(θ_t) + log p(β), up to a
-    constant (the objective :func:`map_shared_beta` maximises)."""
+    constant: the posterior density on (θ_1, …, θ_T, β) (:func:`map_shared_beta` maximises it
+    written in its own coordinates)."""
     f = shared_beta_log_likelihood(mdps, trajs, tol=tol, model=model)
-    log_prior = _separable_prior(prior, _tasks(mdps, trajs)[0][0].n_features)
+    log_prior = _separable_prior(prior, concentration)
 
     def g(thetas, beta):
         return f(thetas, beta)[0] + log_prior(thetas, beta)
@@ -152,7 +156,8 @@ class SharedBetaMAP:
         log_posterior: the unnormalised log-posterior at the optimum.
         starts: ``[n_starts, T·K + 1]`` the (θ_1, …, θ_T, β) each run started from.
         optima: ``[n_starts]`` log-posterior each run reached (the best is reported).
-        evaluations: total likelihood-and-gradient evaluations.
+        evaluations: total likelihood-and-gradient evaluations (the Hessian's included).
+        laplace: :func:`~.laplace.laplace_summary` at the optimum (θ's fields ``[T][K]``).
     """
 
     thetas: np.ndarray
@@ -161,6 +166,7 @@ class SharedBetaMAP:
     starts: np.ndarray
     optima: np.ndarray
     evaluations: int
+    laplace: dict | None = None
 
 
 def map_shared_beta(
@@ -173,6 +179,7 @@ def map_shared_beta(
     model: str = DEFAULT_MODEL,
     tol: float = 1e-10,
     progress: Progress = None,
+    concentration: float | None = None,
 ) -> SharedBetaMAP:
     """Maximise Σ_t log P(Ξ_t | θ_t, β) + Σ_t log p(θ_t) + log p(β) by L-BFGS-B.
 
@@ -188,14 +195,15 @@ def map_shared_beta(
     tasks = _tasks(mdps, trajs)
     T, K = len(tasks), tasks[0][0].n_features
     lo, hi = get_prior(prior).beta_range
-    g = shared_beta_log_posterior(mdps, trajs, prior=prior, model=model, tol=tol)
+    f = shared_beta_log_likelihood(mdps, trajs, tol=tol, model=model)
+    prior_x = log_prior_unconstrained(prior, concentration)  # θ's part sums over every z_tk
 
     def unpack(x):
         return jax.nn.softmax(x[:-1].reshape(T, K), axis=-1), jnp.exp(x[-1])
 
     def objective(x):
         thetas, beta = unpack(x)
-        return -g(thetas, beta)
+        return -(f(thetas, beta)[0] + prior_x(x[:-1], x[-1]))
 
     def draw_start():
         thetas0 = np.stack([rng.dirichlet(np.ones(K)) for _ in range(T)])
@@ -205,9 +213,13 @@ def map_shared_beta(
 
     bounds = [(None, None)] * (T * K) + [(math.log(lo), math.log(hi))]
     run = multistart_lbfgsb(objective, draw_start, n_starts, bounds, maxiter=500 * T, progress=progress)
-    thetas, beta = unpack(jnp.asarray(run.best.x))
+    x = np.asarray(run.best.x, dtype=np.float64)
+    grad = lambda y: np.asarray(run.value_and_grad(jnp.asarray(y))[1])  # noqa: E731
+    H = hessian(grad, x)
+    lap = laplace_summary(x, H, grad(x), (lo, hi), rng, n_tasks=T)
+    thetas, beta = unpack(jnp.asarray(x))
     return SharedBetaMAP(np.asarray(thetas), float(beta), float(-run.best.fun), run.starts, run.optima,
-                         run.evaluations)
+                         run.evaluations + 2 * x.size + 1, lap)
 
 
 # ----------------------------------------------------------------------------- NUTS
@@ -354,6 +366,7 @@ def nuts_shared_beta(
     progress: Progress = None,
     dense_mass: bool = True,
     target_accept: float = 0.8,
+    concentration: float | None = None,
 ) -> SharedBetaNUTS:
     """Sample P(θ_1, …, θ_T, β | Ξ_1, …, Ξ_T) with NUTS (the density :func:`map_shared_beta`
     maximises, in T·(K−1)+1 unconstrained coordinates).
@@ -367,7 +380,7 @@ def nuts_shared_beta(
     num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
     first = _tasks(mdps, trajs)[0][0]
     f = shared_beta_log_likelihood(mdps, trajs, tol=tol, model=model)
-    theta_prior, beta_prior = numpyro_priors(prior, first.n_features)
+    theta_prior, beta_prior = numpyro_priors(prior, first.n_features, concentration)
     post = _shared_posterior(f, first.n_features, theta_prior, beta_prior)
     draws = sample(post, f, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
                    seed=seed, dense_mass=dense_mass, target_accept=target_accept, progress=progress)
@@ -408,15 +421,12 @@ def _nest(values: list, T: int, K: int) -> list:
 
 
 def _describe_map(r: SharedBetaMAP, opts) -> dict[str, Any]:
-    from .diagnostics import map_unavailable, map_warnings
+    from .diagnostics import map_description
 
-    diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
-            "unavailable": map_unavailable(opts.starts)}
-    diag["warnings"] = map_warnings(diag, r.beta, get_prior(opts.prior).beta_range)
     return {
         "theta_hat": r.thetas.tolist(), "beta_hat": r.beta,
         "map": {"theta": r.thetas.tolist(), "beta": r.beta, "log_posterior": r.log_posterior},
-        "diagnostics": diag,
+        **map_description(r, opts.starts, get_prior(opts.prior).beta_range),
     }
 
 
@@ -471,12 +481,13 @@ def fit_shared_beta(method: str, mdps, trajs, opts, seed, *, progress: Progress 
     tasks = _tasks(mdps, trajs)
     if method == "map":
         r = map_shared_beta(mdps, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed),
-                            prior=opts.prior, model=opts.model, progress=progress)
+                            prior=opts.prior, model=opts.model, progress=progress,
+                            concentration=opts.concentration)
         out = _describe_map(r, opts)
     else:
         r = nuts_shared_beta(mdps, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
                              num_chains=opts.chains, seed=seed, prior=opts.prior, model=opts.model,
-                             progress=progress)
+                             progress=progress, concentration=opts.concentration)
         out = _describe_nuts(r, tasks[0][0].feature_names)
     out["share"] = "beta"
     out["run_time_s"] = time.perf_counter() - t0

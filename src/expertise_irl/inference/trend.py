@@ -11,16 +11,19 @@ differentiable log-likelihood of episode e alone
 (:func:`~expertise_irl.planning.differentiable.make_log_likelihood` on that episode's counts),
 one solve per episode per evaluation.
 
-Prior (:data:`TREND_PRIOR_TEXT`), a density on (θ, log β_0, λ):
+Prior (:func:`trend_prior_text`), a density on (θ, log β_0, λ):
 
-- θ uniform on the simplex;
+- θ ~ Dirichlet(α) on the simplex (α the MAP or NUTS options' ``concentration``, by default
+  the ``log-uniform`` prior's, :func:`.priors.concentration_of`);
 - log β_0 uniform on [log 1e-3, log 1e2] (the β part of the ``log-uniform`` prior of
   :mod:`.priors`: p(β_0) ∝ 1/β_0 on [1e-3, 1e2]);
 - λ ~ Normal(0, 2), independent of both.
 
-:func:`log_prior_trend` is its log density up to a constant: −λ²/8 inside the support, −∞
-outside. The MAP (:func:`map_trend`) maximises log-likelihood + that log prior over
-(z, log β_0, λ), θ = softmax(z), the same way :func:`.gradient.map_estimate` does for one β.
+:func:`log_prior_trend` is the (log β_0, λ) part of its log density up to a constant: −λ²/8
+inside the support, −∞ outside. The MAP (:func:`map_trend`) maximises log-likelihood + log prior
+in (z, log β_0, λ), θ = softmax(z), the same way :func:`.gradient.map_estimate` does for one β:
+θ's part written in z (:func:`.priors.log_prior_unconstrained`: Σ_i (α z_i − e^{z_i}), so the
+mode maximises ∏θ_i^α), log β_0's flat there already.
 """
 
 from __future__ import annotations
@@ -39,21 +42,31 @@ from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
 from ..planning.differentiable import make_log_likelihood
 from .gradient import multistart_lbfgsb
-from .priors import LOG_UNIFORM_RANGE
+from .priors import LOG_UNIFORM_RANGE, concentration_of
 from .task_likelihood import as_tasks, pair_counts
 
 __all__ = ["SLOPE_PRIOR_SD", "TREND_G", "TREND_PRIOR_TEXT", "TrendMAP", "episode_grid", "episode_tasks",
-           "fit_trend",
-           "log_prior_trend", "map_trend", "split_episodes", "trend_objective"]
+           "fit_trend", "log_prior_trend", "map_trend", "split_episodes", "trend_objective",
+           "trend_prior_text"]
 
 #: The prior standard deviation of the slope λ = log(β_last/β_0).
 SLOPE_PRIOR_SD = 2.0
 #: The learning curve's shape in words.
 TREND_G = "e/(E-1)"
-TREND_PRIOR_TEXT = (
-    f"θ uniform on the simplex, log β_0 uniform on [log {LOG_UNIFORM_RANGE[0]:g}, "
+_TREND_BETA_TEXT = (
+    f"log β_0 uniform on [log {LOG_UNIFORM_RANGE[0]:g}, "
     f"log {LOG_UNIFORM_RANGE[1]:g}], λ ~ Normal(0, {SLOPE_PRIOR_SD:g}); "
     f"log β_e = log β_0 + λ·{TREND_G}")
+
+
+def trend_prior_text(concentration: float | None = None) -> str:
+    """The learning curve's prior in words, θ ~ Dirichlet(α) (default: the log-uniform prior's α)."""
+    a = concentration_of("log-uniform", concentration)
+    theta = "θ uniform on the simplex" if a == 1 else f"θ ~ Dirichlet({a:g}) on the simplex"
+    return f"{theta}, {_TREND_BETA_TEXT}"
+
+
+TREND_PRIOR_TEXT = trend_prior_text()
 
 
 @dataclass(frozen=True)
@@ -144,23 +157,27 @@ def trend_objective(mdp, trajs, *, tol: float = 1e-10, model: str = DEFAULT_MODE
 
 
 def map_trend(mdp, trajs, *, n_starts: int = 4, rng: np.random.Generator,
-              model: str = DEFAULT_MODEL, tol: float = 1e-10) -> TrendMAP:
+              model: str = DEFAULT_MODEL, tol: float = 1e-10, concentration: float | None = None) -> TrendMAP:
     """Maximise Σ_e ll_e(θ, β_e) + log p(θ, log β_0, λ) by L-BFGS-B from ``n_starts`` starts.
 
     Coordinates x = (z, log β_0, λ), θ = softmax(z); log β_0 is bounded to the prior's range,
     λ is free. Starts: θ uniform on the simplex, log β_0 uniform on the prior's range, λ = 0
     (no change; the slope's likelihood is smooth and its prior unimodal). ``mdp`` and ``trajs``
-    may be equal-length lists of tasks (:func:`episode_tasks`).
+    may be equal-length lists of tasks (:func:`episode_tasks`). θ's prior is Dirichlet(α),
+    α = ``concentration`` (default: the log-uniform prior's), written in z.
     """
+    from .priors import log_prior_unconstrained
+
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
     f, g = trend_objective(mdp, trajs, tol=tol, model=model)
     K = as_tasks(mdp, trajs)[0][0].n_features
     lo, hi = (math.log(v) for v in LOG_UNIFORM_RANGE)
+    theta_prior = log_prior_unconstrained("log-uniform", concentration)  # its b part is 0 here
 
     def objective(x):
         ll, lp = f(jax.nn.softmax(x[:K]), x[K], x[K + 1])
-        return -(ll + lp)
+        return -(ll + lp + theta_prior(x[:K], 0.0))
 
     def draw_start():
         theta0 = rng.dirichlet(np.ones(K))
@@ -199,7 +216,9 @@ def fit_trend(mdp, trajs, opts, seed) -> dict[str, Any]:
     if getattr(opts, "prior", "log-uniform") != "log-uniform":
         raise InputError(f"the learning curve's prior is fixed ({TREND_PRIOR_TEXT}); "
                          f"got prior {opts.prior!r}, use 'log-uniform'")
-    r = map_trend(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), model=opts.model)
+    alpha = getattr(opts, "concentration", None)
+    r = map_trend(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), model=opts.model,
+                  concentration=alpha)
     beta_hat = float(np.exp(np.mean(np.log(r.betas))))
     diag: dict[str, Any] = {"optima": r.optima.tolist(), "starts": r.starts.tolist(),
                             "evaluations": r.evaluations, "log_posterior": r.log_posterior}
@@ -215,7 +234,7 @@ def fit_trend(mdp, trajs, opts, seed) -> dict[str, Any]:
         "theta_hat": r.theta.tolist(),
         "beta_hat": beta_hat,
         "expertise_by_episode": rows,
-        "trend": {"beta0": r.beta0, "slope": r.slope, "g": TREND_G, "prior": TREND_PRIOR_TEXT,
+        "trend": {"beta0": r.beta0, "slope": r.slope, "g": TREND_G, "prior": trend_prior_text(alpha),
                   "log_ratio_mean": r.slope},
         "diagnostics": diag,
     }
@@ -284,10 +303,12 @@ class _Closed:
         return jnp.zeros(())
 
 
-def trend_posterior(mdp, trajs, *, tol: float = 1e-8, model: str = DEFAULT_MODEL):
+def trend_posterior(mdp, trajs, *, tol: float = 1e-8, model: str = DEFAULT_MODEL,
+                    concentration: float | None = None):
     """``(Posterior, g)``: the :class:`~.nuts_kernel.Posterior` of (θ, log β_0, λ) in the
     unconstrained coordinates x = (u, u_b, λ) above (``constrained(x) -> (θ, [log β_0, λ])``),
-    the potential −(ll + :func:`log_prior_trend` + log Jacobian) of :func:`trend_objective`'s ``f``."""
+    the potential −(ll + :func:`log_prior_trend` + (α − 1)·Σ log θ_i + log Jacobian) of
+    :func:`trend_objective`'s ``f``, α = ``concentration`` (default: the log-uniform prior's)."""
     import numpyro.distributions as dist
     from numpyro.distributions.transforms import biject_to
 
@@ -299,6 +320,10 @@ def trend_posterior(mdp, trajs, *, tol: float = 1e-8, model: str = DEFAULT_MODEL
     theta_map = biject_to(dist.constraints.simplex)
     b_map = biject_to(dist.constraints.interval(lo, hi))
     n_u = theta_map.inverse_shape((K,))[0]
+    a = concentration_of("log-uniform", concentration)
+
+    def log_theta_density(theta):
+        return 0.0 if a == 1 else (a - 1) * jnp.sum(jnp.log(theta))
 
     def unpack(x):
         u, u_b, slope = x[:n_u], x[n_u], x[n_u + 1]
@@ -312,11 +337,11 @@ def trend_posterior(mdp, trajs, *, tol: float = 1e-8, model: str = DEFAULT_MODEL
         u, u_b, theta, b, slope = unpack(x)
         ll, lp = f(theta, b, slope)
         log_jac = theta_map.log_abs_det_jacobian(u, theta) + b_map.log_abs_det_jacobian(u_b, b)
-        return -(ll + lp + log_jac)
+        return -(ll + lp + log_theta_density(theta) + log_jac)
 
     def log_density(theta, b_slope, counts):
         ll, lp = f(theta, b_slope[0], b_slope[1])
-        return ll + lp
+        return ll + lp + log_theta_density(theta)
 
     return Posterior(potential, constrained, log_density, n_u + 2), g
 
@@ -369,6 +394,7 @@ def nuts_trend(
     progress=None,
     dense_mass: bool = True,
     target_accept: float = 0.8,
+    concentration: float | None = None,
 ) -> TrendNUTS:
     """Sample P(θ, log β_0, λ | Ξ) ∝ exp(Σ_e ll_e(θ, β_e) + :func:`log_prior_trend`) — the density
     :func:`map_trend` maximises — with NUTS, in the K + 1 unconstrained coordinates of
@@ -382,7 +408,7 @@ def nuts_trend(
     from .nuts_kernel import check_run, sample
 
     num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
-    post, g = trend_posterior(mdp, trajs, tol=tol, model=model)
+    post, g = trend_posterior(mdp, trajs, tol=tol, model=model, concentration=concentration)
     f = _Closed()
     draws = sample(post, f, num_warmup=num_warmup, num_samples=num_samples, num_chains=num_chains,
                    seed=seed, dense_mass=dense_mass, target_accept=target_accept, progress=progress)
@@ -418,7 +444,8 @@ def fit_trend_nuts(mdp, trajs, opts, seed, *, progress=None) -> dict[str, Any]:
         raise InputError(f"the learning curve's prior is fixed ({TREND_PRIOR_TEXT}); "
                          f"got prior {opts.prior!r}, use 'log-uniform'")
     r = nuts_trend(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples, num_chains=opts.chains,
-                   seed=int(seed), model=opts.model, progress=progress)
+                   seed=int(seed), model=opts.model, progress=progress,
+                   concentration=getattr(opts, "concentration", None))
     C, D, K = r.theta.shape
     betas = r.betas.reshape(C * D, -1)
     slope, log_beta0 = r.slope.reshape(-1), r.log_beta0.reshape(-1)
@@ -436,7 +463,7 @@ def fit_trend_nuts(mdp, trajs, opts, seed, *, progress=None) -> dict[str, Any]:
         "trend": {"beta0": float(np.exp(log_beta0).mean()), "slope": float(slope.mean()),
                   "slope_q05": float(np.quantile(slope, 0.05)), "slope_q95": float(np.quantile(slope, 0.95)),
                   "p_falls": float(np.mean(slope < 0)), "p_rises": float(np.mean(slope > 0)),
-                  "g": TREND_G, "prior": TREND_PRIOR_TEXT,
+                  "g": TREND_G, "prior": trend_prior_text(getattr(opts, "concentration", None)),
                   "log_ratio_mean": float(slope.mean())},
         "diagnostics": {"r_hat": r.r_hat, "ess_bulk": r.ess, "divergences": r.divergences,
                         "chains": C, "draws_per_chain": D, "mean_tree_size": r.mean_tree_size,
