@@ -1,13 +1,16 @@
 """Low expertise or missing features? Three simulated populations and the verdict of ``--check full``.
 
-    python benchmarks/misspecification.py [--people 50] [--episodes 20] [--json out.json] [--out DIR]
+    python benchmarks/misspecification.py [--people 50] [--episodes 20] [--set fixed|adaptive]
+        [--json out.json] [--out DIR]
 
 Setting: a 12×7 zone map (``MAP`` below; 84 states) whose avoid zone lies across the straight way
 from the start cells to the goal, so that avoiding it costs a detour of 2–4 moves. Every person
 demonstrates ``--episodes`` episodes from the start cells. Inference always uses the *reduced*
 features: the map's five without ``avoid`` (length, road, slow, traffic), with the discrete set
-Θ = paper-real over those four (65 directions) × 22 β log-spaced from 10^-2.5 to 10 (uniform prior),
-and then ``--check full`` (:func:`expertise_irl.inference.misspecification.misspecification`).
+Θ = paper-real over those four (65 directions) × 22 β log-spaced from 10^-2.5 to 10 (uniform prior;
+``--set fixed``, the default) or the set ``infer`` refines by default from its coarse start
+(``--set adaptive``: every truth then lies off the set it starts from), and then ``--check full``
+(:func:`expertise_irl.inference.misspecification.misspecification`).
 
 - **A** (careful, hidden preference): θ* with θ_length ~ U(0.25, 0.35), θ_avoid ~ U(0.5, 0.7), the
   rest split over road, slow, traffic by a Dirichlet(1, 1, 1); β* = 0.05.
@@ -74,11 +77,23 @@ def theta_of(rng: np.random.Generator, hidden: bool) -> np.ndarray:
     return th / th.sum()
 
 
+def posterior(prior, reduced, trajs):
+    """The posterior of ``trajs``: over the fixed set of ``prior``, or (``prior`` None) over the set
+    ``infer`` refines by default (:mod:`expertise_irl.inference.adaptive`)."""
+    if prior is not None:
+        return prior.update(trajs)
+    from expertise_irl.inference.adaptive import refine, start_resolution, start_set
+
+    K = reduced.n_features
+    r = refine(reduced, trajs, start_set(K), theta_step=1 / start_resolution(K))
+    return DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior).update(trajs)
+
+
 def person(pop: str, i: int, beta: float, full, reduced, prior, episodes: int, check: str = "full") -> dict:
     rng = np.random.default_rng(np.random.SeedSequence([32, POPULATIONS[pop], i]))
     th = theta_of(rng, hidden=(pop == "A"))
     trajs = simulate(full, th, beta, episodes, rng)
-    post = prior.update(trajs)
+    post = posterior(prior, reduced, trajs)
     t0 = time.perf_counter()
     hyp = post.hypotheses
     mis = misspecification([(reduced, trajs)], check=check, theta=hyp.theta, beta=hyp.beta,
@@ -112,6 +127,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--people", type=int, default=50)
     ap.add_argument("--episodes", type=int, default=20)
+    ap.add_argument("--set", choices=("fixed", "adaptive"), default="fixed",
+                    help="fixed: paper-real Θ × 22 β (below); adaptive: the set infer refines by default")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--out", type=Path, help="Write a person of A's demonstrations and the MDP here.")
     ap.add_argument("--roc", type=Path, help="Draw the ROC of the held-out gain (A against B) to this PNG; "
@@ -126,13 +143,14 @@ def main() -> None:
     info = machine_info()
     t0 = time.perf_counter()
     full, reduced = maps()
-    prior = DiscreteBelief.from_mdp(reduced, HypothesisSet(resolve_thetas("paper-real", 4), BETAS))
+    prior = None if args.set == "adaptive" else DiscreteBelief.from_mdp(
+        reduced, HypothesisSet(resolve_thetas("paper-real", 4), BETAS))
     rows = [person("A", i, 0.05, full, reduced, prior, args.episodes) for i in range(args.people)]
     median_a = float(np.median([r["beta_hat"] for r in rows]))
     grid = np.logspace(np.log10(0.05), 0.0, 7)
     calib = []
     for b in grid:
-        got = [_beta_hat("calibration", j, float(b), full, prior, args.episodes) for j in range(10)]
+        got = [_beta_hat("calibration", j, float(b), full, reduced, prior, args.episodes) for j in range(10)]
         calib.append(float(np.median(got)))
     beta_b = float(np.exp(np.interp(np.log(median_a), np.log(calib), np.log(grid))))
     rows += [person("B", i, beta_b, full, reduced, prior, args.episodes) for i in range(args.people)]
@@ -166,7 +184,7 @@ def main() -> None:
         calibration[name] = {"n": len(ps), "ks_p": float(kstest(ps, "uniform").pvalue),
                              "mean": float(ps.mean()), "share_below_0.05": float(np.mean(ps < 0.05))}
     result = {
-        "machine": info, "people_per_population": args.people, "episodes": args.episodes,
+        "machine": info, "people_per_population": args.people, "episodes": args.episodes, "set": args.set,
         "beta_b": beta_b, "calibration_grid": grid.tolist(), "calibration_median_beta_hat": calib,
         "table": table,
         "auc_gain_A_vs_B": auc(gain_a, gain_b), "auc_z_A_vs_B": auc(z["A"], z["B"]),
@@ -176,8 +194,9 @@ def main() -> None:
         "roc_gain_A_vs_B": roc(gain_a, gain_b),
         "wall_s": time.perf_counter() - t0, "people": rows,
     }
-    for k in ("machine", "beta_b", "calibration_median_beta_hat", "table", "auc_gain_A_vs_B", "auc_z_A_vs_B",
-              "auc_verdict_A_vs_B", "C_features_explain_share", "C_p_value_calibration", "wall_s"):
+    for k in ("machine", "set", "beta_b", "calibration_median_beta_hat", "table", "auc_gain_A_vs_B",
+              "auc_z_A_vs_B", "auc_verdict_A_vs_B", "C_features_explain_share", "C_p_value_calibration",
+              "wall_s"):
         print(f"{k}: {json.dumps(result[k])}")
     if args.json:
         args.json.write_text(json.dumps(result, indent=1) + "\n")
@@ -207,10 +226,10 @@ def draw_roc(result: dict, png: Path) -> None:
     plt.close(fig)
 
 
-def _beta_hat(pop: str, i: int, beta: float, full, prior, episodes: int) -> float:
+def _beta_hat(pop: str, i: int, beta: float, full, reduced, prior, episodes: int) -> float:
     rng = np.random.default_rng(np.random.SeedSequence([32, POPULATIONS[pop], i]))
     th = theta_of(rng, hidden=False)
-    return prior.update(simulate(full, th, beta, episodes, rng)).mean_beta
+    return posterior(prior, reduced, simulate(full, th, beta, episodes, rng)).mean_beta
 
 
 if __name__ == "__main__":

@@ -178,3 +178,9 @@ def test_a_coarse_named_set_is_told_from_missing_features(tmp_path):
     assert not any(w.startswith(UNEXPLAINED) for w in doc["diagnostics"]["warnings"])
     assert any(w.startswith(COARSE) for w in doc["diagnostics"]["warnings"])
     assert "too coarse" in res.output
+    # plot --check wraps the long reason instead of widening the page (one line of it was 3,563 px wide)
+    import matplotlib.image as mpimg
+
+    ok(invoke("plot", out, "--check", "--map", "crossroads", "--out", tmp_path / "check.png"))
+    height, width = mpimg.imread(tmp_path / "check.png").shape[:2]
+    assert width < 1.3 * height

@@ -26,6 +26,9 @@ from . import maps
 REJECTED, PASSED = "#c0392b", "#222222"
 
 
+#: Characters per line of the figure's title (a long reason is wrapped, not allowed to widen the page).
+TITLE_WIDTH = 120
+
 def check_figure(doc: dict[str, Any], *, mdp: TabularMDP | None = None, trajs: Trajectories | None = None,
                  source: str | Path = "result"):
     """The :class:`~matplotlib.figure.Figure` of ``doc``'s ``diagnostics.misspecification``."""
@@ -104,13 +107,16 @@ def _statistic_panel(ax, name: str, st: dict[str, Any], replicated, mdp) -> None
 
 
 def _check_title(mis: dict[str, Any], comp, pred: dict[str, Any], has_stats: bool) -> str:
-    title = f"{mis['verdict']} — {mis['reason']}"
+    import textwrap
+
+    title = "\n".join(textwrap.wrap(f"{mis['verdict']} — {mis['reason']}", TITLE_WIDTH))
     if comp is not None:
         title += (f"\nheld-out gain of a per-state reward {comp['gain']:.3g} ± {comp['gain_se']:.2g} "
                   f"nats/action; β features {comp['beta_features']:.3g}, per-state {comp['beta_richer']:.3g}")
     if has_stats:
         alpha = (mis.get("thresholds") or {}).get("alpha", 0.05)
-        title += (f"\nbars: {pred.get('replicates', 'the')} data sets simulated from the posterior; "
+        whose = " refined" if mis.get("first") else ""  # a coarse set: the checks of the refined set
+        title += (f"\nbars: {pred.get('replicates', 'the')} data sets simulated from the{whose} posterior; "
                   f"line: the demonstrations (red: rejected, Holm at family-wise level {alpha:g})")
     return title
 
