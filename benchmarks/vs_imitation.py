@@ -2,7 +2,7 @@
 
     python benchmarks/vs_imitation.py [--people 10] [--episodes 5] [--betas 0.05,0.5,5] [--seed 0]
         [--horizon 80] [--sigma 10] [--mce-max-iter 150] [--workers 2]
-        [--imitation-python /tmp/imitation-venv/bin/python]
+        [--imitation-python /tmp/imitation-venv/bin/python] [--no-mce]
         [--out benchmarks/results/vs_imitation.txt] [--json FILE]
 
 imitation 1.0.1 requires ``gymnasium~=0.29`` and this package ``gymnasium>=1.0``, so imitation
@@ -10,6 +10,8 @@ lives in a virtual environment of its own, which this script runs as a subproces
 (the rest runs here)::
 
     python3.11 -m venv /tmp/imitation-venv && /tmp/imitation-venv/bin/pip install imitation==1.0.1
+
+``--no-mce`` runs without it: the ``mce`` column and the conversion checks are left out.
 
 It needs nothing of ours installed: the worker imports ``expertise_irl``'s NumPy-only modules
 (``mdp``, ``demos.trajectories``, ``demos.imitation_io``) from ``src/`` through ``PYTHONPATH``.
@@ -265,14 +267,14 @@ def cli_check(mdp, person, tmp: Path, api: dict) -> dict:
     return out
 
 
-def summarise(rows: list[dict], betas) -> list[dict]:
+def summarise(rows: list[dict], betas, methods=METHODS) -> list[dict]:
     """One row per group and method (and the uniform θ̂ baseline, which has no β̂)."""
     from expertise_irl.hypotheses import expertise_group
 
     table = []
     for g, beta in zip(GROUPS, betas, strict=False):
         mine = [r for r in rows if r["group"] == g]
-        for m in (*METHODS, "uniform"):
+        for m in (*methods, "uniform"):
             cos = np.array([r[m]["cosine"] for r in mine])
             reg = np.array([r[m]["regret"] for r in mine])
             row = {"group": g, "beta_true": beta, "method": m, "people": len(mine),
@@ -310,14 +312,59 @@ def table_lines(table: list[dict]) -> list[str]:
     return out
 
 
-def person_line(row: dict) -> str:
+def person_line(row: dict, methods=METHODS) -> str:
     theta = ",".join(f"{x:.2f}" for x in row["theta_true"])
     parts = [f"{row['person']:2d} {row['group']:6} β* {row['beta_true']:<4g} θ* ({theta}) "
              f"goal {row['episodes_reaching_goal']}/{row['episodes']} {row['actions']:4d} actions |"]
-    for m in METHODS:
+    for m in methods:
         r = row[m]
         parts.append(f"{m} cos {r['cosine']:6.3f} β̂ {r['beta_hat']:<7.3g}")
-    return " ".join(parts) + f"| mce {row['mce']['iterations']} it"
+    return " ".join(parts) + (f"| mce {row['mce']['iterations']} it" if "mce" in methods else "")
+
+
+def attach_mce(args, mdp, people, rows: list[dict], tmp: Path) -> tuple[dict, float]:
+    """MCE IRL on every person (imitation's environment, :func:`run_mce`): each row's ``mce``."""
+    from expertise_irl.demos.imitation_io import arrival_chain
+
+    write_job(tmp, mdp, people, args.horizon, args.sigma, args.mce_max_iter)
+    t_mce = time.perf_counter()
+    mce = run_mce(tmp, len(people), args.workers, args.imitation_python)
+    mce_s = time.perf_counter() - t_mce
+    chain = arrival_chain(mdp, args.horizon)
+    for p, row in zip(people, rows, strict=True):
+        r = mce["rows"][p["index"]]
+        th_hat, b_hat = chain.theta_beta(r["weights"])
+        row["mce"] = {"theta_hat": th_hat.tolist(), "beta_hat": b_hat, "weights": r["weights"],
+                      "seconds": r["wall_s"], "iterations": r["iterations"], "grad_norm": r["grad_norm"],
+                      "converged": r["grad_norm"] <= MCE_GRAD_EPS}
+        row["mce"]["warnings"] = [] if row["mce"]["converged"] else [
+            f"MCE IRL stopped at {r['iterations']} iterations with gradient {r['grad_norm']:.2g}"]
+    return mce, mce_s
+
+
+def score_rows(mdp, people, rows: list[dict], methods) -> None:
+    """Each method's (and the uniform θ̂'s) cosine to θ* and regret, into the rows."""
+    for p, row in zip(people, rows, strict=True):
+        row["uniform"] = {"theta_hat": (np.ones(mdp.n_features) / mdp.n_features).tolist()}
+        thetas = np.array([p["theta"], *(row[m]["theta_hat"] for m in (*methods, "uniform"))])
+        ret = optimal_policy_returns(mdp, thetas, p["theta"])
+        row["optimal_return"] = float(ret[0])
+        for m, v in zip((*methods, "uniform"), ret[1:], strict=True):
+            row[m]["cosine"] = cosine(row[m]["theta_hat"], p["theta"])
+            row[m]["regret"] = float(ret[0] - v)
+
+
+def mce_lines(mce: dict, rows: list[dict], n_people: int) -> list[str]:
+    """imitation's versions, the conversion checks and MCE IRL's iterations, in words."""
+    iters = [row["mce"]["iterations"] for row in rows]
+    return [
+        f"\nimitation's environment: {', '.join(f'{k} {v}' for k, v in mce['versions'].items())}",
+        f"conversion checks (imitation's real Trajectory): round trip exact for "
+        f"{sum(mce['rows'][i]['round_trip_exact'] for i in mce['rows'])}/{n_people} people; "
+        f"MCEIRL's occupancy count = ArrivalChain.occupancy for "
+        f"{sum(mce['rows'][i]['occupancy_as_imitation_counts'] for i in mce['rows'])}/{n_people}",
+        f"MCE IRL iterations: median {int(np.median(iters))}, max {max(iters)}; converged (gradient ≤ "
+        f"{MCE_GRAD_EPS:g}) {sum(row['mce']['converged'] for row in rows)}/{len(rows)}"]
 
 
 def main(argv=None) -> None:
@@ -333,6 +380,7 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int, default=2, help="MCE IRL processes at once")
     ap.add_argument("--imitation-python", default=DEFAULT_IMITATION_PYTHON,
                     help="the Python of the environment imitation is installed in")
+    ap.add_argument("--no-mce", action="store_true", help="leave MCE IRL out (no imitation environment)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "vs_imitation.txt")
     ap.add_argument("--json", type=Path, help="also write every person's numbers here")
     ap.add_argument("--mce-worker", nargs=3, metavar=("JOB_DIR", "PEOPLE", "OUT"), help=argparse.SUPPRESS)
@@ -344,7 +392,7 @@ def main(argv=None) -> None:
     betas = [float(b) for b in args.betas.split(",")]
     if len(betas) > len(GROUPS):
         ap.error(f"--betas takes at most {len(GROUPS)} values (one per group)")
-    if not Path(args.imitation_python).exists():
+    if not args.no_mce and not Path(args.imitation_python).exists():
         ap.error(f"{args.imitation_python} not found: create imitation's environment first (the docstring)")
 
     import tempfile
@@ -396,48 +444,25 @@ def main(argv=None) -> None:
                          "warnings": run.fields["diagnostics"].get("warnings", [])}
     ours_s = time.perf_counter() - t_ours
 
+    methods = tuple(m for m in METHODS if m != "mce" or not args.no_mce)
     with tempfile.TemporaryDirectory(prefix="vs-imitation-") as tmp:
         tmp = Path(tmp)
         check_person = next(p for p in people if p["group"] == "medium") if len(betas) > 1 else people[0]
         cli = cli_check(mdp, check_person, tmp, rows[check_person["index"]])
-        write_job(tmp, mdp, people, args.horizon, args.sigma, args.mce_max_iter)
-        t_mce = time.perf_counter()
-        mce = run_mce(tmp, len(people), args.workers, args.imitation_python)
-        mce_s = time.perf_counter() - t_mce
+        mce, mce_s = (None, 0.0) if args.no_mce else attach_mce(args, mdp, people, rows, tmp)
+    score_rows(mdp, people, rows, methods)
 
-    from expertise_irl.demos.imitation_io import arrival_chain
-
-    chain = arrival_chain(mdp, args.horizon)
-    for p, row in zip(people, rows, strict=True):
-        r = mce["rows"][p["index"]]
-        th_hat, b_hat = chain.theta_beta(r["weights"])
-        row["mce"] = {"theta_hat": th_hat.tolist(), "beta_hat": b_hat, "weights": r["weights"],
-                      "seconds": r["wall_s"], "iterations": r["iterations"], "grad_norm": r["grad_norm"],
-                      "converged": r["grad_norm"] <= MCE_GRAD_EPS}
-        row["mce"]["warnings"] = [] if row["mce"]["converged"] else [
-            f"MCE IRL stopped at {r['iterations']} iterations with gradient {r['grad_norm']:.2g}"]
-        row["uniform"] = {"theta_hat": (np.ones(mdp.n_features) / mdp.n_features).tolist()}
-        thetas = np.array([p["theta"], *(row[m]["theta_hat"] for m in (*METHODS, "uniform"))])
-        ret = optimal_policy_returns(mdp, thetas, p["theta"])
-        row["optimal_return"] = float(ret[0])
-        for m, v in zip((*METHODS, "uniform"), ret[1:], strict=True):
-            row[m]["cosine"] = cosine(row[m]["theta_hat"], p["theta"])
-            row[m]["regret"] = float(ret[0] - v)
-
-    table = summarise(rows, betas)
+    table = summarise(rows, betas, methods)
     say()
     for row in rows:
-        say(person_line(row))
-    say(f"\nimitation's environment: {', '.join(f'{k} {v}' for k, v in mce['versions'].items())}")
-    say(f"conversion checks (imitation's real Trajectory): round trip exact for "
-        f"{sum(mce['rows'][i]['round_trip_exact'] for i in mce['rows'])}/{len(people)} people; "
-        f"MCEIRL's occupancy count = ArrivalChain.occupancy for "
-        f"{sum(mce['rows'][i]['occupancy_as_imitation_counts'] for i in mce['rows'])}/{len(people)}")
+        say(person_line(row, methods))
+    if mce is not None:
+        for line in mce_lines(mce, rows, len(people)):
+            say(line)
+    else:
+        say("\nMCE IRL: left out (--no-mce)")
     say(f"command line = API (person {check_person['index']}, {check_person['group']}): " + ", ".join(
         f"{m} {'yes' if c['same_as_api'] else 'NO'} ({c['wall_s']:.1f} s)" for m, c in cli.items()))
-    iters = [row["mce"]["iterations"] for row in rows]
-    say(f"MCE IRL iterations: median {int(np.median(iters))}, max {max(iters)}; converged (gradient ≤ "
-        f"{MCE_GRAD_EPS:g}) {sum(row['mce']['converged'] for row in rows)}/{len(rows)}")
     reach = {g: [row["episodes_reaching_goal"] for row in rows if row["group"] == g] for g in GROUPS}
     say("episodes reaching the goal: " + ", ".join(
         f"{g} {sum(v)}/{len(v) * args.episodes}" for g, v in reach.items() if v))
@@ -456,7 +481,7 @@ def main(argv=None) -> None:
     if args.json:
         args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
                                                   for k, v in vars(args).items()},
-                                         "mce_versions": mce["versions"], "cli_check": cli,
+                                         "mce_versions": mce and mce["versions"], "cli_check": cli,
                                          "table": table, "people": rows}, indent=1) + "\n")
 
 
