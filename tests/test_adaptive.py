@@ -184,3 +184,15 @@ def test_a_coarse_named_set_is_told_from_missing_features(tmp_path):
     ok(invoke("plot", out, "--check", "--map", "crossroads", "--out", tmp_path / "check.png"))
     height, width = mpimg.imread(tmp_path / "check.png").shape[:2]
     assert width < 1.3 * height
+
+
+def test_the_round_cap_warns_only_when_the_estimate_has_not_settled(mdp, person):
+    _, _, trajs = person
+    hyp = start_set(mdp.n_features)
+    free = refine(mdp, trajs, hyp, theta_step=0.25)
+    n = len(free.record["rounds"]) - 1  # the rounds it needed
+    enough = refine(mdp, trajs, hyp, theta_step=0.25, settings=Refinement(max_rounds=n))
+    assert enough.warnings == [] and enough.record["converged"]
+    short = refine(mdp, trajs, hyp, theta_step=0.25, settings=Refinement(max_rounds=1))
+    assert not short.record["converged"] and "1 round (the cap)" in short.record["stop_reason"]
+    assert len(short.warnings) == 1 and len(short.record["rounds"]) == 2

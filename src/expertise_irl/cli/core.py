@@ -266,6 +266,10 @@ def infer(
         help="birl, map, nuts: the prior. log-uniform (default): θ uniform, log β uniform on "
         "[0.001, 100]; paper (Sec. VII-A): θ uniform, β ~ Normal(5.005, 1.5) truncated to "
         "[0.01, 10], which pulls β̂ towards 5.")] = "log-uniform",
+    concentration: Annotated[float | None, typer.Option(
+        help="map, nuts: θ ~ Dirichlet(α) on the simplex, α > 0 (default 1: uniform; larger pulls θ̂ "
+        "towards equal weights). MAP's mode is taken in its coordinates θ = softmax(z), log β, where "
+        "it maximises likelihood × ∏θ_i^α × p(β)·β (docs/model.md).", show_default=False)] = None,
     iterations: Annotated[int, typer.Option(min=1, help="birl: iterations K.")] = 1000,
     delta: Annotated[float, typer.Option(help="birl: θ grid step δ.")] = 0.05,
     beta_step: Annotated[float, typer.Option(help="birl: β grid step.")] = 0.1,
@@ -294,7 +298,7 @@ def infer(
     """
     from ..demos.csv_io import read_demos_csv
     from ..inference.methods import document, get_method
-    from ..inference.misspecification import add_to_result, check_level, posterior_of_run
+    from ..inference.misspecification import add_to_result, check_level, posterior_of_run, refit_of_run
     from ..results import INLINE_DRAWS, check_writable, samples_path_for, write_json
 
     chosen = get_method(method)
@@ -321,7 +325,7 @@ def infer(
     doc["settings"]["check"] = check
     t0 = time.perf_counter()
     add_to_result(doc, [(mdp, trajs)], posterior_of_run(run, mdp), check=check, model=run.settings["model"],
-                  seed=seed)
+                  seed=seed, refit=refit_of_run(run, mdp, trajs, opts))
     write_json(out_path, doc)
     _report_result(doc, out_path, len(trajs), check_s=time.perf_counter() - t0)
 
@@ -348,7 +352,8 @@ def _report_result(doc: dict, out_path: Path, n_actions: int, check_s: float | N
     if ci and ci["beta"] is None:
         _say("90% credible interval of β: none (a chain did not move in β; see the warning)")
     elif ci:
-        _say(f"90% credible interval of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
+        kind = "Laplace 90% interval" if doc["method"] == "map" else "90% credible interval"
+        _say(f"{kind} of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
     if doc.get("changing"):
         ch, curve, tr = doc["changing"], doc["expertise_by_episode"], doc["trend"]
         bf = ch["log_bayes_factor"]

@@ -39,7 +39,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from ..demos.trajectories import Trajectories
-from ..errors import InputError
+from ..errors import InputError, plural
 from ..hypotheses import HypothesisSet
 from ..mdp import TabularMDP
 
@@ -507,7 +507,7 @@ def refine(mdp: TabularMDP, trajs: Trajectories, start: HypothesisSet, *,
     st = _stats(pool, K)
     rounds = [] if st is None else [_round_entry(0, pool, st, solved, time.perf_counter() - t0, None)]
     stop, warnings, pruned, converged = IMPOSSIBLE, [], 0.0, False
-    for r in range(1, settings.max_rounds + 1):
+    for r in range(1, settings.max_rounds + 2):  # the last pass only asks whether it settled
         if st is None:
             break
         dropped = _prune(pool, st)
@@ -520,6 +520,10 @@ def refine(mdp: TabularMDP, trajs: Trajectories, start: HypothesisSet, *,
         if not (ext or bt or tt):
             converged = last is None or _converged(last, settings)
             stop = RESOLVED if converged else FINEST
+            break
+        if r > settings.max_rounds:
+            stop = f"{plural(settings.max_rounds, 'round')} (the cap) without settling"
+            warnings.append(_cap_warning(stop, settings.max_rounds, last))
             break
         snap = pool.snapshot()
         for b in ext:
@@ -537,9 +541,6 @@ def refine(mdp: TabularMDP, trajs: Trajectories, start: HypothesisSet, *,
         solved += n
         prev, st = st, _stats(pool, K)
         rounds.append(_round_entry(r, pool, st, n, time.perf_counter() - t1, st.changes(prev)))
-    else:
-        stop = f"{settings.max_rounds} rounds (the cap) without settling"
-        warnings.append(_cap_warning(stop, settings.max_rounds, rounds[-1]["changes"]))
     return _finish(pool, K, rounds, {"converged": converged, "stop_reason": stop, "solved": solved,
                                      "pruned_mass": pruned, "seconds": time.perf_counter() - t0,
                                      "settings": settings}, warnings)

@@ -120,7 +120,8 @@ class DiscreteOptions:
         k = self.sample_thetas
         if k is not None:
             if k > len(th) and note is not None:
-                note(f"--sample-thetas {k} exceeds the {len(th)} directions of --thetas {self.thetas}; "
+                name = self.thetas or "paper-real"
+                note(f"--sample-thetas {k} exceeds the {len(th)} directions of --thetas {name}; "
                      "using all of them")
             th = sample_thetas(th, min(k, len(th)), np.random.default_rng(seed))
         return HypothesisSet(th, resolve_betas(self.betas or "paper-sim"))
@@ -378,7 +379,7 @@ def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
 
 
 def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
-    from .diagnostics import map_unavailable, map_warnings
+    from .diagnostics import map_description
 
     if isinstance(r, tuple):  # --expertise changing: the one-β MAP and the learning curve
         r, curve = r
@@ -388,21 +389,10 @@ def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
         out["trend"]["log_posterior"] = curve["diagnostics"]["log_posterior"]
         return out
 
-    lap = r.laplace
-    diag = {"starts": r.starts.tolist(), "optima": r.optima.tolist(), "evaluations": r.evaluations,
-            "unavailable": map_unavailable(opts.starts),
-            "log_posterior_coordinates": "z, log β (θ = softmax(z); the mode of the density there)",
-            "intervals": "Laplace: Normal(mode, Hessian⁻¹) in (z, log β), mapped to (θ, β)",
-            "laplace": {k: lap.get(k) for k in ("positive_definite", "edge", "sd_log_beta", "ridge",
-                                                "theta_mean", "beta_mean", "min_curvature") if k in lap}}
-    if not lap["positive_definite"]:
-        diag["unavailable"]["credible_intervals"] = "the Laplace Hessian is not positive definite"
-    diag["warnings"] = map_warnings(diag, r.beta, PRIORS[opts.prior].beta_range, lap)
-    return {
+    return {  # the mode, its Laplace intervals (docs/model.md: why the mode)
         "theta_hat": r.theta.tolist(), "beta_hat": r.beta,
         "map": {"theta": r.theta.tolist(), "beta": r.beta, "log_posterior": r.log_posterior},
-        **({"credible_intervals": lap["credible_intervals"]} if lap["positive_definite"] else {}),
-        "diagnostics": diag,
+        **map_description(r, opts.starts, PRIORS[opts.prior].beta_range),
     }
 
 
