@@ -12,6 +12,7 @@ from cli_helpers import invoke, ok
 
 from expertise_irl.demos.csv_io import write_demos_csv
 from expertise_irl.demos.simulation import simulate
+from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import HypothesisSet
 from expertise_irl.inference import adaptive
 from expertise_irl.inference.adaptive import Refinement, refine, simplex_lattice, start_resolution, start_set
@@ -196,3 +197,67 @@ def test_the_round_cap_warns_only_when_the_estimate_has_not_settled(mdp, person)
     short = refine(mdp, trajs, hyp, theta_step=0.25, settings=Refinement(max_rounds=1))
     assert not short.record["converged"] and "1 round (the cap)" in short.record["stop_reason"]
     assert len(short.warnings) == 1 and len(short.record["rounds"]) == 2
+
+
+# ----------------------------------------------------------------------------- several tasks
+OTHER = """
+S....tt...
+S..ss.....
+S..ss..xxG
+S.........
+..<<<<<<..
+"""
+
+
+def test_several_tasks_share_one_hypothesis_and_sum_their_log_likelihoods(mdp, person):
+    """Over two maps the refined set's log-likelihood of a hypothesis is the sum of a fresh solve's on
+    each map, each map's policies are kept in task order, and the record's last estimate is the
+    posterior of that sum with the recorded prior."""
+    theta, beta, trajs = person
+    other = parse_map(OTHER, name="adaptive-other").to_mdp()
+    shown = simulate(other, theta, beta, 10, np.random.default_rng(8), max_steps=200)
+    step = 1 / start_resolution(mdp.n_features)
+    r = adaptive.refine_tasks([(mdp, trajs), (other, shown)], start_set(mdp.n_features), theta_step=step)
+    assert isinstance(r.log_policy, tuple) and len(r.log_policy) == 2
+    parts = [DiscreteBelief.from_mdp(m, r.hypotheses).update(t) for m, t in ((mdp, trajs), (other, shown))]
+    np.testing.assert_allclose(r.log_likelihood, parts[0].log_likelihood + parts[1].log_likelihood, rtol=1e-9)
+    np.testing.assert_allclose(parts[1].log_likelihood,
+                               DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy[1]).update(shown)
+                               .log_likelihood, rtol=1e-12)
+    logw = r.log_likelihood + np.log(r.prior)
+    p = np.exp(logw - logw.max())
+    p /= p.sum()
+    assert r.record["rounds"][-1]["beta_hat"] == pytest.approx(p @ r.hypotheses.beta, rel=1e-9)
+    # one task alone reads another β̂: the second task moved the estimate
+    alone = refine(mdp, trajs, start_set(mdp.n_features), theta_step=step)
+    b_hat = r.record["rounds"][-1]["beta_hat"]
+    assert b_hat != pytest.approx(alone.record["rounds"][-1]["beta_hat"], rel=1e-3)
+
+
+def test_known_start_log_likelihoods_are_not_solved_again(mdp, person):
+    """Given the start set's log-likelihoods, the refinement solves only what it adds and reaches the
+    set a refinement that solved the start itself reaches."""
+    _, _, trajs = person
+    hyp, step = start_set(mdp.n_features), 1 / start_resolution(mdp.n_features)
+    known = DiscreteBelief.from_mdp(mdp, hyp).update(trajs).log_likelihood
+    r = adaptive.refine_tasks([(mdp, trajs)], hyp, theta_step=step, start_log_likelihood=known,
+                              keep_policies=False)
+    full = refine(mdp, trajs, hyp, theta_step=step)
+    assert r.log_policy is None and r.record["rounds"][0]["solved"] == 0
+    assert r.record["solved"] == full.record["solved"] - len(hyp)
+    np.testing.assert_array_equal(r.hypotheses.thetas, full.hypotheses.thetas)
+    np.testing.assert_array_equal(r.hypotheses.betas, full.hypotheses.betas)
+    np.testing.assert_allclose(r.log_likelihood, full.log_likelihood, rtol=1e-9)
+    with pytest.raises(InputError, match="keep_policies=False"):
+        adaptive.refine_tasks([(mdp, trajs)], hyp, start_log_likelihood=known)
+
+
+def test_features_kept_at_zero_stay_zero_and_the_beta_range_covers_the_start(mdp, person):
+    _, _, trajs = person
+    hyp = HypothesisSet(start_set(mdp.n_features).thetas, [0.03, 0.3, 3.0, 30.0])
+    r = adaptive.refine_tasks([(mdp, trajs)], hyp, theta_step=0.25, zero_features=(4,), keep_policies=False,
+                              settings=Refinement(max_rounds=2))
+    assert len(r.record["rounds"]) >= 2  # it refined
+    assert np.all(r.hypotheses.thetas[:, 4] == 0)
+    assert adaptive._Pool.of(hyp, 0.25).limits == (adaptive.BETA_LIMITS[0], 30.0)
+    assert adaptive._Pool.of(start_set(3), 0.25).limits == adaptive.BETA_LIMITS

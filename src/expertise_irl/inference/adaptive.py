@@ -7,7 +7,7 @@ depends on θ/β only). :func:`refine` starts from a coarse set and refines it i
 - **β**, log-spaced: every β of the smallest set holding 99.9% of the β marginal gets the two
   values half its spacing away (in log β), down to :data:`BETA_MIN_STEP` decades; an end of the
   set holding :data:`EDGE_MASS` or more of the mass is extended by a coarse step, within
-  :data:`BETA_LIMITS`.
+  :data:`BETA_LIMITS` (widened to the start set's range when it reaches past them).
 - **θ**, on the simplex: every θ of the smallest set holding 95% of the θ marginal (at most
   :data:`MAX_THETA_REFINE` a round) gets its neighbours θ ± (h/2)(e_i − e_j) at half its spacing
   h, down to :data:`THETA_MIN_STEP`, unless a neighbour lies past the posterior's 99.9% interval
@@ -18,6 +18,10 @@ After each round only the new hypotheses are solved; θ and β whose posterior m
 90% intervals change less than the :class:`Refinement` tolerances from one round to the next, or
 at a cap (hypotheses solved, policy memory, seconds, rounds), which stops with a warning and the
 best posterior so far, never an error.
+
+**Several tasks** (:func:`refine_tasks`): one person's tasks share one (θ, β); a hypothesis'
+log-likelihood is the sum over them, each map solved once per round. The start set's
+log-likelihoods may be given (a study has them from its sweep), and the policies need not be kept.
 
 **The prior.** Each hypothesis weighs the cell it stands for: a θ refined ``l`` times weighs
 2^-(K−1)·l of a start θ (its lattice cell at half the spacing per refinement), a β refined ``l``
@@ -31,7 +35,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -178,6 +182,8 @@ class _Pool:
     ll: dict[tuple[int, int], float] = field(default_factory=dict)
     policy: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
     keys: dict[bytes, int] = field(default_factory=dict)
+    limits: tuple[float, float] = BETA_LIMITS  # where β may go: BETA_LIMITS, widened to the start's range
+    zero: tuple[int, ...] = ()  # components kept at 0
 
     @classmethod
     def of(cls, hyp: HypothesisSet, theta_step: float | None) -> _Pool:
@@ -188,6 +194,8 @@ class _Pool:
         pool = cls(list(th), h.tolist(), [0] * len(th), hyp.betas.tolist(), s.tolist(), [0] * len(logb))
         pool.active_t, pool.active_b = list(range(len(th))), list(range(len(logb)))
         pool.keys = {_key(t): i for i, t in enumerate(th)}
+        pool.limits = (min(BETA_LIMITS[0], float(hyp.betas.min())),
+                       max(BETA_LIMITS[1], float(hyp.betas.max())))
         return pool
 
     def log_weights(self, n_features: int) -> tuple[np.ndarray, np.ndarray]:
@@ -210,7 +218,7 @@ class _Pool:
         self.active_t.append(len(self.thetas) - 1)
 
     def add_beta(self, beta: float, step: float, level: int) -> None:
-        lo, hi = BETA_LIMITS
+        lo, hi = self.limits
         if not lo * (1 - 1e-9) <= beta <= hi * (1 + 1e-9):
             return
         if any(abs(math.log10(b) - math.log10(beta)) < 1e-9 for b in self.betas):
@@ -288,7 +296,7 @@ def _stats(pool: _Pool, n_features: int) -> _Stats | None:
     thetas = np.array([pool.thetas[i] for i in pool.active_t])
     qs = ((1 - CREDIBLE) / 2, (1 + CREDIBLE) / 2)
     s = np.array([pool.beta_s(j) for j in pool.active_b])
-    grid = np.linspace(math.log10(BETA_LIMITS[0]) - 0.5, math.log10(BETA_LIMITS[1]) + 0.5, 6001)
+    grid = np.linspace(math.log10(pool.limits[0]) - 0.5, math.log10(pool.limits[1]) + 0.5, 6001)
     blo, bhi = (10.0**x for x in _mixture_quantiles(np.log10(betas), s, pb, grid, qs))
     h = np.array([pool.theta_h(i) for i in pool.active_t])
     tgrid = np.linspace(0.0, 1.0, 2001)
@@ -334,7 +342,7 @@ def _edges(pool: _Pool, st: _Stats) -> list[float]:
                                                                              max(pool.betas))):
         b = pool.betas[active[pick]]
         new = b * 10 ** (sign * START_BETA_STEP)
-        lo, hi = BETA_LIMITS
+        lo, hi = pool.limits
         if b == end and st.beta_marginal[pick] >= EDGE_MASS and lo * (1 - 1e-9) <= new <= hi * (1 + 1e-9):
             out.append(new)
     return out
@@ -382,7 +390,7 @@ def _halve_thetas(pool: _Pool, st: _Stats, todo: list[int], n_features: int) -> 
         lo, hi = st.theta_bounds[:, 0] - h - 1e-12, st.theta_bounds[:, 1] + h + 1e-12
         for a in range(n_features):
             for b in range(n_features):
-                if a == b or t[b] < h - 1e-12:
+                if a == b or a in pool.zero or t[b] < h - 1e-12:
                     continue
                 new = t.copy()
                 new[a] += h
@@ -409,21 +417,26 @@ def _prune(pool: _Pool, st: _Stats) -> float:
 # ----------------------------------------------------------------------------- the rounds
 @dataclass(frozen=True)
 class Refined:
-    """What :func:`refine` returns.
+    """What :func:`refine` and :func:`refine_tasks` return.
 
     Attributes:
         hypotheses: the final set Θ × B.
-        log_policy: ``[H, S, A]`` its solved policies (θ-major, as :class:`HypothesisSet` orders them).
+        log_policy: ``[H, S, A]`` its solved policies (θ-major, as :class:`HypothesisSet` orders them);
+            with several maps a tuple of them, one per distinct map in the order of the tasks; None
+            when the policies were not kept.
         prior: ``[H]`` the prior weight of each hypothesis (the cell it stands for).
         record: the refinement as the result records it (rounds, costs, why it stopped).
         warnings: a cap that stopped it, in one line each.
+        log_likelihood: ``[H]`` each hypothesis' log-likelihood of the demonstrations (summed over
+            the tasks).
     """
 
     hypotheses: HypothesisSet
-    log_policy: np.ndarray
+    log_policy: Any
     prior: np.ndarray
     record: dict[str, Any]
     warnings: list[str]
+    log_likelihood: np.ndarray | None = None
 
 
 def _buckets():
@@ -436,26 +449,53 @@ def _buckets():
         scale *= 2
 
 
-def _solve_missing(pool: _Pool, mdp: TabularMDP, trajs: Trajectories, solve_kwargs: dict,
-                   progress: Callable | None, done: int) -> int:
-    """Solve the active hypotheses not solved yet; how many that was."""
+@dataclass(frozen=True)
+class _Tasks:
+    """A person's tasks: each distinct map (by identity) once, with the demonstrations shown on it."""
+
+    maps: list[tuple[TabularMDP, list[Trajectories]]]
+    keep_policies: bool
+
+    @classmethod
+    def of(cls, tasks, keep_policies: bool) -> _Tasks:
+        maps: dict[int, tuple[TabularMDP, list[Trajectories]]] = {}
+        for mdp, trajs in tasks:
+            maps.setdefault(id(mdp), (mdp, []))[1].append(trajs)
+        return cls(list(maps.values()), keep_policies)
+
+    @property
+    def cells(self) -> int:
+        """State-action cells of one hypothesis' policies (every map)."""
+        return sum(m.n_states * m.n_actions for m, _ in self.maps)
+
+
+def _solve_missing(pool: _Pool, tasks: _Tasks, solve_kwargs: dict, progress: Callable | None,
+                   done: int) -> int:
+    """Solve the active hypotheses not solved yet on every map; how many that was."""
     from ..planning.soft_vi import solve
     from ..planning.table_likelihood import log_likelihood
 
     pairs = pool.missing()
     if not pairs:
         return 0
-    n = len(pairs)
+    n, G = len(pairs), len(tasks.maps)
     bucket = next(b for b in _buckets() if b >= n)  # a few shapes, each compiled once
     padded = pairs + [pairs[-1]] * (bucket - n)
     theta = np.array([pool.thetas[i] for i, _ in padded])
     beta = np.array([pool.betas[j] for _, j in padded])
-    tick = None if progress is None else (lambda d, t: progress(done + min(d * n // t, n), done + n))
-    lp = np.asarray(solve(mdp, theta, beta, progress=tick, **solve_kwargs).log_policy)[:n]
-    ll = log_likelihood(lp, trajs.state, trajs.action)
+    ll, policies = np.zeros(n), []
+    for g, (mdp, shown) in enumerate(tasks.maps):
+        tick = None if progress is None else (
+            lambda d, t, g=g: progress(done + min((g * t + d) * n // (G * t), n), done + n))
+        lp = np.asarray(solve(mdp, theta, beta, progress=tick, **solve_kwargs).log_policy)[:n]
+        for trajs in shown:
+            ll += log_likelihood(lp, trajs.state, trajs.action)
+        if tasks.keep_policies:
+            policies.append(lp)
     for k, key in enumerate(pairs):
         pool.ll[key] = float(ll[k])
-        pool.policy[key] = lp[k]
+        if tasks.keep_policies:
+            pool.policy[key] = tuple(lp[k] for lp in policies)
     return len(pairs)
 
 
@@ -468,7 +508,7 @@ def _round_entry(r: int, pool: _Pool, st: _Stats, solved: int, seconds: float,
 
 
 def _cap(pool: _Pool, settings: Refinement, solved: int, started: float, n_cells: int) -> str | None:
-    """The cap the next round would pass (None: none)."""
+    """The cap the next round would pass (None: none; ``n_cells``: 0 when no policy is kept)."""
     todo = len(pool.missing())
     if solved + todo > settings.max_hypotheses:
         return (f"the next round would solve {todo} more hypotheses, past the cap of "
@@ -498,12 +538,28 @@ def refine(mdp: TabularMDP, trajs: Trajectories, start: HypothesisSet, *,
     (tol, chunk_size, model); ``progress(done, total)`` counts hypotheses solved (the total grows
     with the rounds).
     """
-    K = mdp.n_features
-    if start.thetas.shape[1] != K:
-        raise InputError(f"hypotheses have {start.thetas.shape[1]} features but the MDP has {K} "
-                         f"({', '.join(mdp.feature_names)})")
-    pool, kw, t0 = _Pool.of(start, theta_step), dict(solve_kwargs or {}), time.perf_counter()
-    solved = _solve_missing(pool, mdp, trajs, kw, progress, 0)
+    return refine_tasks([(mdp, trajs)], start, settings=settings, theta_step=theta_step,
+                        solve_kwargs=solve_kwargs, progress=progress)
+
+
+def refine_tasks(tasks: Sequence[tuple[TabularMDP, Trajectories]], start: HypothesisSet, *,
+                 settings: Refinement = Refinement(), theta_step: float | None = None,
+                 solve_kwargs: dict | None = None, progress: Callable[[int, int], None] | None = None,
+                 start_log_likelihood: np.ndarray | None = None, keep_policies: bool = True,
+                 zero_features: Sequence[int] = ()) -> Refined:
+    """:func:`refine` over several tasks of one person: ``(mdp, trajs)`` pairs whose maps share the
+    features; a hypothesis' log-likelihood is the sum over the tasks (one (θ, β) for all of them).
+
+    ``start_log_likelihood``: ``[len(start)]`` the start set's log-likelihoods of the tasks, already
+    known, so the start is not solved again (needs ``keep_policies=False``). ``keep_policies=False``:
+    the final set's policies are not kept (``log_policy`` None; the policy memory cap then does not
+    apply). ``zero_features``: components kept at 0 (the start's θ with another value there leave
+    the set, and refinement adds none).
+    """
+    pool, jobs = _start_pool(tasks, start, theta_step, start_log_likelihood, keep_policies, zero_features)
+    K, kw, t0 = start.thetas.shape[1], dict(solve_kwargs or {}), time.perf_counter()
+    cells = jobs.cells if keep_policies else 0
+    solved = _solve_missing(pool, jobs, kw, progress, 0)
     st = _stats(pool, K)
     rounds = [] if st is None else [_round_entry(0, pool, st, solved, time.perf_counter() - t0, None)]
     stop, warnings, pruned, converged = IMPOSSIBLE, [], 0.0, False
@@ -530,20 +586,50 @@ def refine(mdp: TabularMDP, trajs: Trajectories, start: HypothesisSet, *,
             pool.add_beta(b, START_BETA_STEP, 0)
         _halve_betas(pool, bt)
         _halve_thetas(pool, st, tt, K)
-        cap = _cap(pool, settings, solved, t0, mdp.n_states * mdp.n_actions)
+        cap = _cap(pool, settings, solved, t0, cells)
         if cap is not None:
             pool.restore(snap)
             stop = cap
             warnings.append(_cap_warning(cap, r - 1, last))
             break
         t1 = time.perf_counter()
-        n = _solve_missing(pool, mdp, trajs, kw, progress, solved)
+        n = _solve_missing(pool, jobs, kw, progress, solved)
         solved += n
         prev, st = st, _stats(pool, K)
         rounds.append(_round_entry(r, pool, st, n, time.perf_counter() - t1, st.changes(prev)))
     return _finish(pool, K, rounds, {"converged": converged, "stop_reason": stop, "solved": solved,
                                      "pruned_mass": pruned, "seconds": time.perf_counter() - t0,
-                                     "settings": settings}, warnings)
+                                     "settings": settings}, warnings, keep_policies)
+
+
+def _start_pool(tasks, start: HypothesisSet, theta_step: float | None, start_ll, keep_policies: bool,
+                zero_features: Sequence[int]) -> tuple[_Pool, _Tasks]:
+    """The pool of ``start`` (its known log-likelihoods filled in) and the tasks, checked."""
+    K = start.thetas.shape[1]
+    if not tasks:
+        raise InputError("refinement needs at least one task")
+    for mdp, _ in tasks:
+        if mdp.n_features != K:
+            raise InputError(f"hypotheses have {K} features but the MDP has {mdp.n_features} "
+                             f"({', '.join(mdp.feature_names)})")
+    if start_ll is not None and keep_policies:
+        raise InputError("known start log-likelihoods come without policies: use keep_policies=False")
+    keep = np.ones(start.n_theta, dtype=bool)
+    for i in zero_features:
+        keep &= np.isclose(start.thetas[:, i], 0.0, atol=1e-12)
+    if not keep.any():
+        raise InputError("no θ of the start set is 0 on every feature kept at 0")
+    hyp = start if keep.all() else HypothesisSet(start.thetas[keep], start.betas)
+    pool = _Pool.of(hyp, theta_step)
+    pool.zero = tuple(int(i) for i in zero_features)
+    if start_ll is not None:
+        ll = np.asarray(start_ll, dtype=np.float64)
+        if ll.shape != (len(start),):
+            raise InputError(f"start log-likelihoods must be {len(start)} values, got shape {ll.shape}")
+        for i, row in enumerate(ll.reshape(start.n_theta, start.n_beta)[keep]):
+            for j, v in enumerate(row):
+                pool.ll[(i, j)] = float(v)
+    return pool, _Tasks.of(tasks, keep_policies)
 
 
 def _cap_warning(reason: str, rounds: int, changes: dict[str, float] | None) -> str:
@@ -553,13 +639,18 @@ def _cap_warning(reason: str, rounds: int, changes: dict[str, float] | None) -> 
             f"{reason}{moved}; the posterior is the best so far")
 
 
-def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: list[str]) -> Refined:
-    """The final set, its policies and prior, and the record of the refinement."""
+def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: list[str],
+            keep_policies: bool = True) -> Refined:
+    """The final set, its policies (when kept), prior and log-likelihoods, and the refinement's record."""
     order_b = sorted(pool.active_b, key=lambda j: pool.betas[j])
     thetas = np.array([pool.thetas[i] for i in pool.active_t])
     betas = np.array([pool.betas[j] for j in order_b])
     hyp = HypothesisSet(thetas, betas)
-    log_policy = np.stack([pool.policy[(i, j)] for i in pool.active_t for j in order_b])
+    pairs = [(i, j) for i in pool.active_t for j in order_b]
+    log_policy = None
+    if keep_policies:
+        per_map = [np.stack(m) for m in zip(*(pool.policy[k] for k in pairs), strict=True)]
+        log_policy = per_map[0] if len(per_map) == 1 else tuple(per_map)
     lt = np.array([-(K - 1) * pool.theta_level[i] * math.log(2) for i in pool.active_t])
     lb = np.array([-pool.beta_level[j] * math.log(2) for j in order_b])
     logw = (lt[:, None] + lb[None, :]).ravel()
@@ -574,4 +665,4 @@ def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: l
               "prior": "each θ weighs its lattice cell (2^-(K-1) per halving of its spacing), each β its "
                        "cell in log β (1/2 per halving): uniform on the simplex and log-uniform in β over "
                        "the range the set covers"}
-    return Refined(hyp, log_policy, prior, record, warnings)
+    return Refined(hyp, log_policy, prior, record, warnings, np.array([pool.ll[k] for k in pairs]))
