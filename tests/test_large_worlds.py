@@ -135,6 +135,16 @@ def test_large_maps_default_to_level_order(plan_mdp, monkeypatch):
     assert soft_vi.default_method(plan_mdp) == "sweeps"
 
 
+def test_a_gpu_keeps_the_plain_sweeps_on_large_maps(plan_mdp, monkeypatch):
+    monkeypatch.delenv(soft_vi.SOLVER_ENV, raising=False)
+    monkeypatch.setattr(soft_vi, "LEVELS_MIN_STATES", plan_mdp.n_states)  # this plan counts as large
+    assert soft_vi.default_method(plan_mdp) == "levels"
+    monkeypatch.setattr(soft_vi, "_backend", lambda: "gpu")
+    assert soft_vi.default_method(plan_mdp) == "sweeps"
+    monkeypatch.setenv(soft_vi.SOLVER_ENV, "levels")  # the variable still decides
+    assert soft_vi.default_method(plan_mdp) == "levels"
+
+
 def test_the_pool_shrinks_to_the_memory_it_has():
     mdp = generate_floor_plan(30).to_mdp()
     S = mdp.n_states
