@@ -261,3 +261,15 @@ def test_features_kept_at_zero_stay_zero_and_the_beta_range_covers_the_start(mdp
     assert np.all(r.hypotheses.thetas[:, 4] == 0)
     assert adaptive._Pool.of(hyp, 0.25).limits == (adaptive.BETA_LIMITS[0], 30.0)
     assert adaptive._Pool.of(start_set(3), 0.25).limits == adaptive.BETA_LIMITS
+
+
+def test_a_time_cap_stops_with_a_warning(mdp, person, tmp_path):
+    from expertise_irl.errors import InputError
+
+    _, _, trajs = person
+    r = refine(mdp, trajs, start_set(mdp.n_features), theta_step=0.25,
+               settings=Refinement(max_seconds=1e-9))
+    assert "--max-seconds" in r.record["stop_reason"] and len(r.record["rounds"]) == 1
+    assert len(r.warnings) == 1 and "the posterior is the best so far" in r.warnings[0]
+    with pytest.raises(InputError, match="--max-seconds must be a finite number > 0"):
+        DiscreteOptions(max_seconds=0.0)

@@ -241,6 +241,9 @@ def infer(
         "log-spaced, θ on the simplex) until β̂, E[θ] and the 90% intervals settle; the result's "
         "`refinement` records each round. Default: refine when no set is named; --no-refine alone "
         "is the paper-real Θ × paper-sim B set.", show_default=False)] = None,
+    max_seconds: Annotated[float | None, typer.Option(
+        help="discrete with refinement: no new round starts after this many seconds; the refinement "
+        "stops there with a warning and the posterior so far.", show_default=False)] = None,
     max_hypotheses: Annotated[int, typer.Option(
         min=1, help="discrete with refinement: the most hypotheses solved in all; the refinement "
         "stops there with a warning and the posterior so far.")] = 20_000,

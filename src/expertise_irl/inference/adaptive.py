@@ -518,7 +518,7 @@ def _cap(pool: _Pool, settings: Refinement, solved: int, started: float, n_cells
         return f"the set's policies would take {held / 2**30:.2f} GiB, past the cap of " \
                f"{settings.max_policy_bytes / 2**30:.2f} GiB"
     if settings.max_seconds is not None and time.perf_counter() - started > settings.max_seconds:
-        return f"the refinement has run {settings.max_seconds:g} s, its time cap"
+        return f"the refinement has run {settings.max_seconds:g} s, its time cap (--max-seconds)"
     return None
 
 

@@ -77,6 +77,7 @@ class DiscreteOptions:
     expertise: str = "stationary"  # or "changing": β_e per episode (inference.changing)
     refine: bool | None = None  # refine the set (inference.adaptive); None: when no set is named
     max_hypotheses: int = 20_000  # refinement's cap on hypotheses solved
+    max_seconds: float | None = None  # refinement's time cap: no round starts after it
 
     def __post_init__(self) -> None:
         if not (0 < self.tol <= MAX_TOL):
@@ -85,6 +86,8 @@ class DiscreteOptions:
             raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
         if self.max_hypotheses < 1:
             raise InputError(f"--max-hypotheses must be >= 1, got {self.max_hypotheses}")
+        if self.max_seconds is not None and not (math.isfinite(self.max_seconds) and self.max_seconds > 0):
+            raise InputError(f"--max-seconds must be a finite number > 0, got {self.max_seconds:g}")
         if self.refine and self.expertise == "changing":
             raise InputError("--refine follows the one-β posterior and cannot be used with --expertise "
                              "changing, whose β grid must span every episode's β (name it with --betas)")
@@ -254,7 +257,8 @@ def refined_set(mdp, trajs, start, opts: DiscreteOptions, progress: Progress = N
     from .adaptive import Refinement, refine, start_resolution
 
     step = None if opts.named else 1 / start_resolution(mdp.n_features)
-    return refine(mdp, trajs, start, settings=Refinement(max_hypotheses=opts.max_hypotheses), theta_step=step,
+    caps = Refinement(max_hypotheses=opts.max_hypotheses, max_seconds=opts.max_seconds)
+    return refine(mdp, trajs, start, settings=caps, theta_step=step,
                   solve_kwargs={"tol": opts.tol, "chunk_size": opts.chunk_size, "model": opts.model},
                   progress=progress)
 
@@ -432,6 +436,7 @@ def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any
             "betas": opts.betas or ("adaptive" if refined else "paper-sim"),
             "sample_thetas": opts.sample_thetas,
             "hypotheses": "adaptive" if refined else "fixed", "max_hypotheses": opts.max_hypotheses,
+            "max_seconds": opts.max_seconds,
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
             "prior": fit.refined.record["prior"] if refined else "uniform",
             "model": opts.model, "per_action": opts.per_action, "tol": opts.tol,
