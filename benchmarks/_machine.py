@@ -47,6 +47,17 @@ def machine_info() -> dict[str, object]:
     }
 
 
+def header(script: str) -> list[str]:
+    """The first lines of a benchmark's output, printed: the command and the machine. JAX's
+    persistent compilation cache is switched on first, as the command line does."""
+    from expertise_irl.planning.jax_cache import enable_jax_cache
+
+    enable_jax_cache()
+    lines = [f"command: python benchmarks/{script} {' '.join(sys.argv[1:])}", f"machine: {machine_info()}"]
+    print("\n".join(lines), flush=True)
+    return lines
+
+
 def report(result: dict, json_path) -> None:
     """Print a benchmark's result as ``key: value`` lines, and write it as JSON if asked."""
     import json

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _machine import machine_info
+from _machine import header
 
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.experiments.demo import run_demo
@@ -61,12 +61,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", type=Path)
     a = ap.parse_args()
-    from expertise_irl.planning.jax_cache import enable_jax_cache
-
-    enable_jax_cache()
-    lines = [f"command: python benchmarks/adaptive_cost.py {' '.join(sys.argv[1:])}",
-             f"machine: {machine_info()}"]
-    print("\n".join(lines), flush=True)
+    lines = header("adaptive_cost.py")
     ratios = []
     for name, mdp, trajs, thetas, betas in cases([int(x) for x in a.seeds.split(",")]):
         row = f"{name:15s} {len(trajs):5d} actions"

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _machine import machine_info
+from _machine import header
 
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.inference.methods import get_method
@@ -69,13 +69,8 @@ def main() -> None:
     ap.add_argument("--check", choices=("fast", "full"), default="fast")
     ap.add_argument("--out", type=Path)
     a = ap.parse_args()
-    from expertise_irl.planning.jax_cache import enable_jax_cache
-
-    enable_jax_cache()
+    lines = header("coarse_or_missing.py")
     full = resolve_map("crossroads").to_mdp()
-    lines = [f"command: python benchmarks/coarse_or_missing.py {' '.join(sys.argv[1:])}",
-             f"machine: {machine_info()}"]
-    print("\n".join(lines), flush=True)
     for g, group in enumerate(("complete", "hidden")):
         mdp = full if group == "complete" else without_avoid(full)
         counts = {s: dict.fromkeys(VERDICTS, 0) for s in SETS}

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _machine import machine_info
+from _machine import header
 
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.inference.methods import get_method
@@ -112,12 +112,7 @@ def main() -> None:
     ap.add_argument("--json", type=Path)
     ap.add_argument("--out", type=Path)
     a = ap.parse_args()
-    from expertise_irl.planning.jax_cache import enable_jax_cache
-
-    enable_jax_cache()
-    header = [f"command: python benchmarks/off_grid.py {' '.join(sys.argv[1:])}",
-              f"machine: {machine_info()}"]
-    print("\n".join(header), flush=True)
+    lines = header("off_grid.py")
     rows = []
     for mi, (map_name, mdp) in enumerate(maps(a.seed)):
         for i in range(a.people):
@@ -135,7 +130,7 @@ def main() -> None:
                 rows.append(r)
                 print(f"{map_name} {i:2d} {name:8s} β*={beta:.3g} β̂={r['beta_hat']:.3g} "
                       f"cos={r['cosine']:.3f} {r['seconds']:.1f}s {r.get('n_hypotheses', '')}", flush=True)
-    lines = [*header, f"people: {a.people} per map on crossroads and a generated 14x12 map"]
+    lines = [*lines, f"people: {a.people} per map on crossroads and a generated 14x12 map"]
     for name in a.methods.split(","):
         lines += summarise(rows, name)
     text = "\n".join(lines)
