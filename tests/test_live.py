@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from collections import deque
 
+import numpy as np
 import pytest
 from starlette.testclient import TestClient
 from test_cli import assert_input_error, invoke, ok
@@ -390,6 +391,35 @@ def test_live_command_bad_input(tmp_path):
     assert_input_error(invoke("live", "corridor", "--out", rec, "--port", 0), "demos.csv", "jumps")
 
 
+def test_live_command_without_a_set_is_adaptive(tmp_path, monkeypatch):
+    """No set named: the start set, refined after each episode; --no-refine and --expertise changing
+    keep the fixed paper-real × paper-sim set; --refine cannot follow a changing β."""
+    import expertise_irl.live.server as server
+    from expertise_irl.inference.adaptive import start_set
+
+    monkeypatch.setattr(server, "serve", lambda session, sock, on_ready: (
+        on_ready(server.url_of(sock)), sock.close()))
+
+    def settings(*args):
+        out = tmp_path / str(len(list(tmp_path.iterdir())))
+        r = invoke("live", "corridor", *args, "--out", out, "--port", 0)
+        ok(r)
+        return r.stdout, json.loads((out / "result.json").read_text())["settings"]
+
+    stdout, s = settings()
+    assert "refined after each episode" in stdout
+    assert s["hypotheses"] == s["thetas"] == s["betas"] == "adaptive"
+    assert s["n_hypotheses"] == len(start_set(5))  # the five zone-map features
+    for args in (("--no-refine",), ("--expertise", "changing")):
+        stdout, s = settings(*args)
+        assert "refined" not in stdout, args
+        assert (s["hypotheses"], s["thetas"], s["betas"]) == ("fixed", "paper-real", "paper-sim"), args
+    _, s = settings("--thetas", "0,1", "--refine")  # a named set refined on request
+    assert s["hypotheses"] == "adaptive" and s["thetas"] == "0,1" and s["betas"] == "adaptive"
+    assert_input_error(invoke("live", "corridor", "--refine", "--expertise", "changing", "--port", 0),
+                       "--refine")
+
+
 def test_next_start_command(tmp_path):
     demos = tmp_path / "demos.csv"
     ok(invoke("simulate", "crossroads", "--theta", "1,1,0,0,0", "--beta", "0.5", "--episodes", 2,
@@ -401,6 +431,9 @@ def test_next_start_command(tmp_path):
     assert a.stdout == b.stdout and a.stdout.startswith("next start: state ")
     assert "expected information gain" in a.stdout and "8 of" in a.stdout
     assert_input_error(invoke("next-start", "crossroads"), "--demos")
+    adaptive = invoke(*(x for x in args if x not in ("--thetas", "0,1")))  # over the refined set
+    ok(adaptive)
+    assert adaptive.stdout.startswith("next start: state ") and adaptive.stdout != a.stdout
     assert_input_error(invoke(*args, "--target", "theta"), "--target")
 
 
@@ -553,3 +586,121 @@ def test_changing_expertise_reports_this_episodes_filtered_beta(tmp_path, zone_m
     assert now["episode"] == 0 and now["beta_mean"] == pytest.approx(float(want @ hyp.betas), rel=1e-12)
     assert now["q05"] <= now["q95"]
     assert "expertise_now" not in make(zone_map, hyp, tmp_path / "s")[0].state_message()
+
+
+# --------------------------------------------------------------------- adaptive sets
+def make_adaptive(zone_map, out):
+    """A session with no set named: the coarse start set, refined after each episode."""
+    from expertise_irl.inference.methods import DiscreteOptions
+
+    opts = DiscreteOptions()
+    assert opts.refines
+    return make(zone_map, opts.hypotheses(5), out, refine=opts)
+
+
+def refined_directly(mdp, trajs):
+    """``infer``'s adaptive set and posterior for ``trajs``, computed without the session."""
+    from expertise_irl.inference.adaptive import refine, start_resolution, start_set
+
+    K = mdp.n_features
+    r = refine(mdp, trajs, start_set(K), theta_step=1 / start_resolution(K))
+    return r, DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior).update(trajs)
+
+
+def drive_episode(ws, session) -> tuple[dict, dict]:
+    """Drive from the session's position to the goal; the two replies to the last move."""
+    actions = path_to_goal(session.mdp, session.position)
+    for a in actions[:-1]:
+        r = move(ws, ACTION_NAMES[a])
+        assert r["event"] == "moved" and r["n_hypotheses"] == len(session.estimator.hypotheses)
+    return move(ws, ACTION_NAMES[actions[-1]]), ws.receive_json()
+
+
+def test_an_adaptive_session_refines_its_set_after_each_episode(tmp_path, zone_map):
+    from expertise_irl.inference.adaptive import start_set
+
+    session, client = make_adaptive(zone_map, tmp_path)
+    mdp = session.mdp
+    start = start_set(mdp.n_features)
+    assert np.array_equal(session.estimator.hypotheses.theta, start.theta)
+    assert np.array_equal(session.estimator.hypotheses.beta, start.beta)
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        for episode in range(2):
+            n_before = len(session.history_beta)
+            shown, r = drive_episode(ws, session)
+            # The goal is shown at once, with the refinement announced; the new set comes next.
+            assert shown["event"] == "refining" and "Refining the hypothesis set" in shown["message"]
+            assert shown["episodes_done"] == episode + 1 and shown["episode"] == episode
+            assert len(shown["path"]) > 1 and shown["path"][-1] == shown["position"]  # at the goal
+            assert r["path"] == [r["position"]] and r["episode"] == episode + 1  # at the next start
+            assert r["event"] == "episode_done" and "The hypothesis set was refined to" in r["message"]
+            trajs = read_demos_csv(tmp_path / "demos.csv", mdp)
+            want_set, want = refined_directly(mdp, trajs)
+            got = session.estimator.hypotheses
+            assert np.array_equal(got.theta, want_set.hypotheses.theta)
+            assert np.array_equal(got.beta, want_set.hypotheses.beta)
+            assert len(got) != len(start)  # refined, not the start set again
+            assert np.allclose(session.estimator.belief().probabilities, want.probabilities,
+                               rtol=1e-9, atol=1e-12)
+            assert r["estimate"]["beta_hat"] == pytest.approx(want.mean_beta, rel=1e-9)
+            assert r["n_hypotheses"] == len(got)
+            assert len(session.history_beta) == n_before + len(path_to_goal(mdp, trajs.state[n_before]))
+            doc = json.loads((tmp_path / "result.json").read_text())
+            assert doc["refinement"]["n_hypotheses"] == len(got) == doc["settings"]["n_hypotheses"]
+            assert doc["beta_hat"] == pytest.approx(want.mean_beta, rel=1e-9)
+            assert doc["live"]["history"]["beta_hat"] == session.history_beta
+    # What the page showed during episode 0 was the posterior over the start set.
+    ep0 = read_demos_csv(tmp_path / "demos.csv", mdp).episodes()[0]
+    n0 = len(ep0[1])
+    coarse = DiscreteBelief.from_mdp(mdp, start).trace(read_demos_csv(tmp_path / "demos.csv", mdp))
+    assert session.history_beta[:n0] == pytest.approx(coarse.mean_beta[1:n0 + 1].tolist(), rel=1e-9)
+    assert session.history_beta[n0:] != pytest.approx(coarse.mean_beta[n0 + 1:].tolist(), rel=1e-6)
+
+
+def test_an_adaptive_session_resumes_on_the_same_set_and_belief(tmp_path, zone_map):
+    session, client = make_adaptive(zone_map, tmp_path)
+    mdp = session.mdp
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        drive_episode(ws, session)
+        drive_episode(ws, session)
+        between = (session.estimator.hypotheses, session.estimator.estimate, list(session.history_beta))
+        move(ws, ACTION_NAMES[path_to_goal(mdp, session.position)[0]])  # episode 2 cut off
+    est, record = session.estimator, session.refined.record
+    del session, client
+    again, _ = make_adaptive(zone_map, tmp_path)  # replays demos.csv: refines from episodes 0 and 1
+    assert again.estimator.episode_open and again.start.how == "resumed"
+    assert np.array_equal(again.estimator.hypotheses.theta, est.hypotheses.theta)
+    assert np.array_equal(again.estimator.hypotheses.beta, est.hypotheses.beta)
+    assert np.allclose(again.estimator.belief().probabilities, est.belief().probabilities,
+                       rtol=1e-9, atol=1e-12)
+    assert again.estimator.estimate.beta_hat == pytest.approx(est.estimate.beta_hat, abs=1e-12)
+    assert again.history_beta == pytest.approx(between[2] + [est.estimate.beta_hat], rel=1e-9)
+    # Refined from the same (finished) episodes: every round's estimate as when they were recorded.
+    def rounds(rec):
+        return [{k: v for k, v in entry.items() if k != "seconds"} for entry in rec["rounds"]]
+
+    assert rounds(again.refined.record) == rounds(record) and len(rounds(record)) >= 2
+    # Stopped between episodes: the same set and estimate as when episode 1 ended.
+    cut = tmp_path / "between"
+    cut.mkdir()
+    rows = (tmp_path / "demos.csv").read_text().splitlines()
+    (cut / "demos.csv").write_text("\n".join(r for r in rows if not r.startswith("2,")) + "\n")
+    third, _ = make_adaptive(zone_map, cut)
+    assert not third.estimator.episode_open
+    assert np.array_equal(third.estimator.hypotheses.beta, between[0].beta)
+    assert third.estimator.estimate.beta_hat == pytest.approx(between[1].beta_hat, abs=1e-12)
+
+
+def test_a_named_set_is_not_refined(tmp_path, zone_map, hyp):
+    session, client = make(zone_map, hyp, tmp_path)
+    with client.websocket_connect(WS) as ws:
+        ws.receive_json()
+        for a in path_to_goal(session.mdp, session.position):
+            r = move(ws, ACTION_NAMES[a])
+        assert r["event"] == "episode_done" and "refined" not in r["message"]
+    assert session.estimator.hypotheses is hyp and session.refine is None
+    doc = json.loads((tmp_path / "result.json").read_text())
+    assert "refinement" not in doc and "history" not in doc["live"]
+    assert doc["settings"] == {"command": "live", "mdp_digest": "sha256:x"}

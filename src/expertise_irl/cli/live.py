@@ -24,15 +24,30 @@ from ._app import (
 )
 
 THETAS_HELP = ("Θ: a preset (paper-sim, paper-real) or comma-separated component values; the unit-l1 "
-               "grid over all features is built from them.")
+               "grid over all features is built from them. Naming a set (--thetas or --betas) uses it "
+               "as given; the other defaults to paper-real Θ, paper-sim B. Default: an adaptive set "
+               "(see --refine).")
 BETAS_HELP = "B: a preset (paper-sim, paper-real) or comma-separated temperatures."
+REFINE_HELP = ("Refine the hypothesis set where the posterior's mass is (β log-spaced, θ on the simplex) "
+               "until β̂, E[θ] and the 90% intervals settle, as infer does. Default: refine when no set "
+               "is named; --no-refine alone is the paper-real Θ × paper-sim B set.")
+RefineOption = Annotated[bool | None, typer.Option("--refine/--no-refine", help=REFINE_HELP,
+                                                   show_default=False)]
 
 
-def _hypotheses(thetas: str, betas: str, n_features: int):
-    """The discrete method's hypothesis set (the live page and next-start run that method)."""
+def _options(thetas: str | None, betas: str | None, refine: bool | None, expertise: str = "stationary"):
+    """The discrete method's options (the live page and next-start run that method)."""
     from ..inference.methods import DiscreteOptions
 
-    return DiscreteOptions(thetas=thetas, betas=betas).hypotheses(n_features)
+    return DiscreteOptions(thetas=thetas, betas=betas, refine=refine, expertise=expertise)
+
+
+def _set_settings(opts, hyp) -> dict:
+    """The hypothesis set's entries of the result's settings (those of ``infer``)."""
+    kind = "adaptive" if opts.refines else "fixed"
+    return {"thetas": opts.thetas or ("adaptive" if opts.refines else "paper-real"),
+            "betas": opts.betas or ("adaptive" if opts.refines else "paper-sim"), "hypotheses": kind,
+            "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform"}
 
 
 @app.command()
@@ -41,8 +56,9 @@ def live(
     map_spec: Annotated[str, typer.Argument(metavar="MAP", help=(
         "Map file or bundled map name: a zone map, or a warehouse floor plan (a TOML beside it "
         "says world = \"warehouse\"; demos.csv then has the heading column)."))],
-    thetas: Annotated[str, typer.Option(help=THETAS_HELP)] = "paper-real",
-    betas: Annotated[str, typer.Option(help=BETAS_HELP)] = "paper-sim",
+    thetas: Annotated[str | None, typer.Option(help=THETAS_HELP, show_default=False)] = None,
+    betas: Annotated[str | None, typer.Option(help=BETAS_HELP, show_default=False)] = None,
+    refine: RefineOption = None,
     out_dir: Annotated[Path, typer.Option(
         "--out", help="Directory for demos.csv (every action, appended as it happens) and result.json "
         "(rewritten after each episode); a directory that already holds demos.csv is resumed.")] = Path(
@@ -60,8 +76,9 @@ def live(
 
     Drive with the arrow keys or WASD (or the on-screen buttons). After each episode (it ends
     at a goal) the robot picks the next start: the one whose episode is expected to tell the
-    most about θ and β, or a random one (a toggle on the page). Stop with Ctrl-C; run again
-    with the same --out to continue.
+    most about θ and β, or a random one (a toggle on the page). With no set named, the set
+    starts coarse and is refined from every finished episode after each one. Stop with Ctrl-C;
+    run again with the same --out to continue.
     """
     from ..inference.methods import EXPERTISE
     from ..live.server import bind, is_loopback, serve
@@ -72,12 +89,12 @@ def live(
         raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {expertise!r}")
     zone_map = load_map(map_spec, goal_reward)
     mdp = zone_map.to_mdp()
-    hyp = _hypotheses(thetas, betas, mdp.n_features)
+    opts = _options(thetas, betas, refine, expertise)
+    hyp = opts.hypotheses(mdp.n_features)
     settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
                 "mdp_digest": map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
-                "goal_reward_mode": zone_map.goal_reward_mode,
-                "thetas": thetas, "betas": betas, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta,
-                "n_hypotheses": len(hyp), "prior": "uniform", "gamma": mdp.gamma, "seed": seed}
+                "goal_reward_mode": zone_map.goal_reward_mode, **_set_settings(opts, hyp),
+                "gamma": mdp.gamma, "seed": seed}
     check_out_dir(zone_map, out_dir, settings)  # before the solve: a bad DIR fails at once
     if not is_loopback(host):
         _warn(f"--host {host}: the page is reachable from other machines; anyone who can reach it can "
@@ -91,7 +108,7 @@ def live(
         with _progress() as bar:
             session = open_session(zone_map, hyp, out_dir, settings=settings, seed=seed,
                                    progress=_solve_progress(bar, "solving soft value iteration"),
-                                   expertise=expertise)
+                                   expertise=expertise, refine=opts if opts.refines else None)
     except BaseException:
         sock.close()
         raise
@@ -101,8 +118,8 @@ def live(
               f"{session.demos_path}")
 
     def ready(url: str) -> None:
-        _say(f"live page: {url}  ({len(hyp)} hypotheses on {zone_map.name}; recording to {out_dir}; "
-             "Ctrl-C to stop)")
+        size = f"{len(est.hypotheses)} hypotheses" + (", refined after each episode" if opts.refines else "")
+        _say(f"live page: {url}  ({size} on {zone_map.name}; recording to {out_dir}; Ctrl-C to stop)")
         import sys
 
         sys.stdout.flush()
@@ -111,7 +128,7 @@ def live(
         serve(session, sock, on_ready=ready)
     except KeyboardInterrupt:  # uvicorn shuts down cleanly, then re-raises the Ctrl-C
         pass
-    _say(f"stopped: {plural(est.n_observed, 'action')} in {session.demos_path}")
+    _say(f"stopped: {plural(session.estimator.n_observed, 'action')} in {session.demos_path}")
 
 
 @app.command("next-start")
@@ -122,8 +139,9 @@ def next_start_cmd(
     demos: Annotated[Path | None, typer.Option(
         help="Demonstrations so far (CSV, episode,step,x,y[,heading] or episode,step,state,action).")] = None,
     mdp_path: Annotated[Path | None, typer.Option("--mdp", help="MDP archive (.npz) instead of MAP.")] = None,
-    thetas: Annotated[str, typer.Option(help=THETAS_HELP)] = "paper-real",
-    betas: Annotated[str, typer.Option(help=BETAS_HELP)] = "paper-sim",
+    thetas: Annotated[str | None, typer.Option(help=THETAS_HELP, show_default=False)] = None,
+    betas: Annotated[str | None, typer.Option(help=BETAS_HELP, show_default=False)] = None,
+    refine: RefineOption = None,
     samples: Annotated[int, typer.Option(min=1, help="Simulated episodes per candidate start.")] = 48,
     max_steps: Annotated[int, typer.Option(min=1, help="Length cap of a simulated episode.")] = 100,
     candidates: Annotated[int, typer.Option(
@@ -150,11 +168,20 @@ def next_start_cmd(
         raise InputError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
     mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
     trajs = read_demos_csv(demos, mdp)
-    hyp = _hypotheses(thetas, betas, mdp.n_features)
+    opts = _options(thetas, betas, refine)
+    hyp = opts.hypotheses(mdp.n_features)
     prepare_solver()
     with _progress() as bar:
-        prior = DiscreteBelief.from_mdp(mdp, hyp,
-                                        progress=_solve_progress(bar, "solving soft value iteration"))
+        tick = _solve_progress(bar, "solving soft value iteration")
+        if opts.refines:  # the set the live page would be on after these episodes
+            from ..inference.methods import refined_set
+
+            r = refined_set(mdp, trajs, hyp, opts, tick)
+            for w in r.warnings:
+                _warn(w)
+            prior = DiscreteBelief.from_log_policy(r.hypotheses, r.log_policy, prior=r.prior)
+        else:
+            prior = DiscreteBelief.from_mdp(mdp, hyp, progress=tick)
     post = prior.update(trajs)
     sc = expected_information_gain(post, None, mdp, n_samples=samples, max_steps=max_steps,
                                    max_candidates=candidates, target=target, rng=seed)

@@ -83,12 +83,9 @@ def create_app(session: LiveSession, *, allowed_hosts: list[str] | None = None):
                 if problem is not None:
                     await _send(ws, {"type": "error", "message": problem})
                     continue
-                async with lock:
-                    try:
-                        replies = await asyncio.to_thread(session.handle, msg)
-                    except Exception as exc:  # never let one message take the server down
-                        replies = [{"type": "error", "message": f"could not handle the message: {exc}"}]
-                await _deliver(ws, replies, clients)
+                await _deliver(ws, await _run(lock, session.handle, msg, defer=True), clients)
+                if session.refine_pending:  # an episode ended: the page shows it, then the set is refined
+                    await _deliver(ws, await _run(lock, _finish, session), clients)
         except WebSocketDisconnect:
             pass
         finally:
@@ -104,6 +101,22 @@ def create_app(session: LiveSession, *, allowed_hosts: list[str] | None = None):
         Route("/{rest:path}", not_found),
     ]
     return Starlette(routes=routes, middleware=middleware)
+
+
+async def _run(lock: asyncio.Lock, fn: Callable[..., list[dict[str, Any]]], *args,
+               **kwargs) -> list[dict[str, Any]]:
+    """``fn``'s replies, run in a worker thread (a solve or a refinement does not stop the server)
+    while holding ``lock`` (one message at a time); an exception becomes an error reply."""
+    async with lock:
+        try:
+            return await asyncio.to_thread(fn, *args, **kwargs)
+        except Exception as exc:  # never let one message take the server down
+            return [{"type": "error", "message": f"could not handle the message: {exc}"}]
+
+
+def _finish(session: LiveSession) -> list[dict[str, Any]]:
+    """The episode's refinement, unless another page's message ran it meanwhile."""
+    return session.finish_episode() if session.refine_pending else []
 
 
 def _headers(host: str) -> dict[str, str]:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, os_reason
+from ..errors import InputError, os_reason, plural
 from ..hypotheses import HypothesisSet
 from ..inference.active import expected_information_gain
 from ..inference.online import OnlineEstimator
@@ -73,6 +73,11 @@ class LiveSession:
     position: int = -1
     starts_log: list[dict[str, Any]] = field(default_factory=list)
     expertise: str = "stationary"  # "changing": also show the current episode's β, filtered
+    refine: Any = None  # DiscreteOptions whose set is refined after each episode (None: a fixed set)
+    start_hypotheses: HypothesisSet | None = None  # where each refinement starts
+    refined: Any = None  # the last refinement (inference.adaptive.Refined), None before the first
+    refine_pending: bool = False  # an episode ended and its refinement has not run yet
+    _done: tuple[int, int] = (0, 0)  # the episode that ended last and its number of moves
 
     # ------------------------------------------------------------------ paths
     @property
@@ -96,17 +101,23 @@ class LiveSession:
         return None if h is None else HEADING_LETTERS[int(h[s])]
 
     # ---------------------------------------------------------------- protocol
-    def handle(self, msg: Any) -> list[dict[str, Any]]:
-        """Replies to one decoded message (validated here; never raises for bad input)."""
+    def handle(self, msg: Any, *, defer: bool = False) -> list[dict[str, Any]]:
+        """Replies to one decoded message (validated here; never raises for bad input).
+
+        ``defer``: a move that ends an episode of an adaptive set replies at once that the set is
+        being refined, and leaves the refinement to :meth:`finish_episode` (the server runs it next,
+        so the page can say so while it runs); without it the reply comes after the refinement."""
         why = validate_message(msg)
         if why is not None:
             return [{"type": "error", "message": why}]
+        if self.refine_pending:  # never act on a set whose refinement is owed
+            self.finish_episode()
         kind = msg["type"]
         if kind == "sync":
             return [self.state_message()]
         if kind == "mode":
             return self.set_mode(msg["mode"])
-        return self.move(ACTIONS[msg["action"]])
+        return self.move(ACTIONS[msg["action"]], defer=defer)
 
     def set_mode(self, mode: str) -> list[dict[str, Any]]:
         """Switch how the next start is chosen; saved in ``result.json`` so that a restart keeps it."""
@@ -120,7 +131,7 @@ class LiveSession:
                      "not keep it.)")
         return [self.state_message(message=text)]
 
-    def move(self, action: int) -> list[dict[str, Any]]:
+    def move(self, action: int, *, defer: bool = False) -> list[dict[str, Any]]:
         s = self.position
         nxt = int(self.mdp.next_state[s, action])
         if nxt < 0:
@@ -144,13 +155,50 @@ class LiveSession:
         self.position = nxt
         if not self.mdp.terminal[nxt]:
             return [self.state_message(event="moved")]
-        n_moves = t + 1
+        self._done = (e, t + 1)
+        self.refine_pending = self.refine is not None
+        if self.refine_pending and defer:
+            text = (f"Goal reached in {t + 1} moves (episode {e} done). Refining the hypothesis set from "
+                    f"{plural(self.estimator.n_episodes, 'episode')}…")
+            return [self.state_message(event="refining", message=text)]
+        return self.finish_episode()
+
+    def finish_episode(self) -> list[dict[str, Any]]:
+        """After an episode: refine the set (an adaptive set), save ``result.json``, choose the next start."""
+        e, n_moves = self._done
+        note = ""
+        if self.refine_pending:
+            self.refine_pending = False
+            try:
+                note = self.refine_set() + " "
+            except Exception as exc:  # the session goes on over the set it has
+                note = f"The hypothesis set could not be refined ({exc}); it stays as it was. "
         self.write_result()
         self.choose_start()
         self.episode_starts.append(len(self.history_beta))
         text = (f"Goal reached in {n_moves} moves (episode {e} done; saved to {RESULT_NAME}). "
-                f"{self.start.why}")
+                f"{note}{self.start.why}")
         return [self.state_message(event="episode_done", message=text)]
+
+    def refine_set(self, progress: Callable[[int, int], None] | None = None) -> str:
+        """Refine the set from every finished episode (starting from the start set, as ``infer``
+        does) and rebuild the estimator over it with its prior weights, every action so far
+        replayed: the belief is then the exact posterior over the refined set. Says what it did."""
+        from ..inference.methods import refined_set
+
+        trajs = self.estimator.trajectories()
+        done = finished_episodes(trajs, self.estimator.episode_open)
+        if not len(done):
+            return ""
+        r = refined_set(self.mdp, done, self.start_hypotheses, self.refine, progress)
+        est = OnlineEstimator(self.mdp, r.hypotheses, r.log_policy, prior=r.prior)
+        est.feed(trajs)
+        if not self.estimator.episode_open:
+            est.end_episode()
+        self.estimator, self.refined = est, r
+        h = r.hypotheses
+        return (f"The hypothesis set was refined to {len(h)} hypotheses ({h.n_theta} θ × {h.n_beta} β) "
+                f"in {r.record['seconds']:.1f} s." + "".join(f" Warning: {w}." for w in r.warnings))
 
     # -------------------------------------------------------------- recording
     def _append_rows(self, episode: int, step: int, s: int, nxt: int, first: bool) -> None:
@@ -173,12 +221,23 @@ class LiveSession:
         from ..results import discrete_result, write_json
 
         trajs = self.estimator.trajectories()
+        hyp = self.estimator.hypotheses
+        settings = self.settings
+        if self.refine is not None:  # the set in use, as infer records it
+            settings = {**settings, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
+                        "prior": self.refined.record["prior"] if self.refined else "uniform"}
         doc = discrete_result(self.estimator.belief(), feature_names=self.mdp.feature_names,
-                              settings=self.settings,
+                              settings=settings,
                               data={"episodes": trajs.n_episodes, "actions": len(trajs),
                                     "demos": DEMOS_NAME})
+        if self.refined is not None:
+            doc["refinement"] = self.refined.record
+            if self.refined.warnings:
+                doc.setdefault("diagnostics", {})["warnings"] = list(self.refined.warnings)
         doc["live"] = {"starts": self.starts_log, "episode_open": self.estimator.episode_open,
                        "mode": self.mode}
+        if self.refine is not None:  # what the page showed, which a resume cannot recompute
+            doc["live"]["history"] = {"beta_hat": self.history_beta, "entropy": self.history_entropy}
         write_json(self.result_path, doc)
 
     # ------------------------------------------------------------ start choice
@@ -255,7 +314,7 @@ class LiveSession:
         est = self.estimator.estimate
         trajs_pairs = self.estimator._pairs
         path = [self._xy(self.start.state if self.start else self.position)]
-        if self.estimator.episode_open:
+        if self.estimator.episode_open or self.refine_pending:  # (the episode just ended: its path)
             e = trajs_pairs[-1][0]
             ep = [p for p in trajs_pairs if p[0] == e]
             path = [self._xy(p[2]) for p in ep] + [self._xy(self.position)]
@@ -273,6 +332,7 @@ class LiveSession:
             "step": step,
             "episodes_done": self.estimator.n_episodes - int(self.estimator.episode_open),
             "actions": self.estimator.n_observed,
+            "n_hypotheses": len(self.estimator.hypotheses),
             "mode": self.mode,
             "start": {"xy": self._xy(self.start.state), "how": self.start.how, "why": self.start.why}
             if self.start else None,
@@ -325,27 +385,26 @@ def validate_message(msg: Any) -> str | None:
 def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, *,
                  settings: dict[str, Any] | None = None, seed: int = 0,
                  progress: Callable[[int, int], None] | None = None,
-                 n_samples: int = 48, expertise: str = "stationary") -> LiveSession:
-    """Solve the hypotheses on the map and open (or resume) the recording in ``out_dir``."""
+                 n_samples: int = 48, expertise: str = "stationary", refine: Any = None) -> LiveSession:
+    """Solve the hypotheses on the map and open (or resume) the recording in ``out_dir``.
+
+    ``refine``: the :class:`~expertise_irl.inference.methods.DiscreteOptions` of an adaptive set, refined
+    from ``hypotheses`` after every episode (None: ``hypotheses`` stay the set). A resumed adaptive
+    session refines once from the finished episodes of ``demos.csv``: refinement is a function of
+    the demonstrations, so it reaches the set the recording session was on."""
     out_dir = Path(out_dir)
     mdp = zone_map.to_mdp()
     trajs = check_out_dir(zone_map, out_dir, settings)
     out_dir.mkdir(parents=True, exist_ok=True)
-    est = OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
+    est = None if refine is not None and trajs is not None and len(trajs) else \
+        OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
     session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples,
-                          expertise=expertise)
+                          expertise=expertise, refine=refine, start_hypotheses=hypotheses)
     previous = _previous_live(out_dir / RESULT_NAME)
     session.mode = _previous_mode(previous, session.mode)
     if trajs is not None and len(trajs):
-        prior = est.belief()
-        est.feed(trajs)
-        trace = prior.trace(trajs)
-        session.history_beta = trace.mean_beta[1:].tolist()
-        session.history_entropy = trace.entropy[1:].tolist()
-        first = np.flatnonzero(np.append(True, trajs.episode[1:] != trajs.episode[:-1]))
-        session.episode_starts = first.tolist()
-        starts = previous.get("starts")
-        session.starts_log = starts if isinstance(starts, list) else []
+        _replay(session, mdp, trajs, previous, progress)
+        est = session.estimator
     if est.episode_open:
         session.position = int(est.current_state)
         s0 = int(est._pairs[[p[0] for p in est._pairs].index(est._pairs[-1][0])][2])
@@ -357,6 +416,50 @@ def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, 
         session.choose_start()
     session.write_result()  # from the start: records the map this DIR belongs to
     return session
+
+
+def _replay(session: LiveSession, mdp, trajs, previous: dict[str, Any], progress) -> None:
+    """Resume ``session`` from recorded ``trajs``: its set (refined from the finished episodes, for an
+    adaptive set), its belief, the history of β̂ and entropy, and the log of starts."""
+    if session.refine is not None:
+        open_last = not bool(mdp.terminal[mdp.next_state[trajs.state[-1], trajs.action[-1]]])
+        done = finished_episodes(trajs, open_last)
+        if len(done):
+            from ..inference.methods import refined_set
+
+            r = refined_set(mdp, done, session.start_hypotheses, session.refine, progress)
+            session.estimator = OnlineEstimator(mdp, r.hypotheses, r.log_policy, prior=r.prior)
+            session.refined = r
+        else:
+            session.estimator = OnlineEstimator.from_mdp(mdp, session.start_hypotheses, progress=progress)
+    est = session.estimator
+    prior = est.belief()
+    est.feed(trajs)
+    trace = prior.trace(trajs)
+    session.history_beta = trace.mean_beta[1:].tolist()
+    session.history_entropy = trace.entropy[1:].tolist()
+    if session.refine is not None:  # the finished episodes were shown over earlier sets: as saved
+        n_done = len(finished_episodes(trajs, est.episode_open))
+        shown = previous.get("history")
+        b, h = (shown.get(k) if isinstance(shown, dict) else None for k in ("beta_hat", "entropy"))
+        if (isinstance(b, list) and isinstance(h, list) and n_done <= len(b) == len(h) <= len(trajs)
+                and all(isinstance(v, (int, float)) for v in b + h)):
+            session.history_beta[:n_done] = [float(v) for v in b[:n_done]]
+            session.history_entropy[:n_done] = [float(v) for v in h[:n_done]]
+    first = np.flatnonzero(np.append(True, trajs.episode[1:] != trajs.episode[:-1]))
+    session.episode_starts = first.tolist()
+    starts = previous.get("starts")
+    session.starts_log = starts if isinstance(starts, list) else []
+
+
+def finished_episodes(trajs, last_open: bool):
+    """``trajs`` without its last episode when that one is still open (the finished episodes)."""
+    from ..demos.trajectories import Trajectories
+
+    if not (last_open and len(trajs)):
+        return trajs
+    keep = trajs.episode != trajs.episode[-1]
+    return Trajectories(trajs.episode[keep], trajs.step[keep], trajs.state[keep], trajs.action[keep])
 
 
 def demos_header(mdp) -> tuple[str, ...]:

@@ -159,15 +159,18 @@
     g.clearRect(0, 0, W, H);
     const L = 44, R = 36, T = 8, B = 22, w = W - L - R, h = H - T - B;
     const est = state.estimate, hist = state.history;
-    const bv = est.beta_values, lo = Math.log(Math.min(...bv)), hi = Math.log(Math.max(...bv));
-    const emax = Math.log(info.n_hypotheses) || 1;
+    // An adaptive set changes between episodes: the axes span the current set and every value shown.
+    const bv = est.beta_values, seen = bv.concat(hist.beta_hat);
+    const lo = Math.log(Math.min(...seen)), hi = Math.log(Math.max(...seen));
+    const emax = Math.max(Math.log(nHypotheses()), ...hist.entropy) || 1;
     const n = hist.beta_hat.length;
     const X = (i) => L + (n <= 1 ? w * i : (w * i) / n);
     const Yb = (b) => T + h - (h * (Math.log(b) - lo)) / ((hi - lo) || 1);
     const Ye = (e) => T + h - (h * e) / emax;
     g.strokeStyle = "#cfd4da"; g.lineWidth = 1; g.strokeRect(L, T, w, h);
     g.fillStyle = "#66717d"; g.font = "10px system-ui, sans-serif"; g.textAlign = "right"; g.textBaseline = "middle";
-    for (const b of bv) {
+    const every = Math.ceil(bv.length / 8);  // at most 8 labelled values
+    for (const b of bv.filter((_, i) => i % every === 0)) {
       g.fillText(fmtBeta(b), L - 4, Yb(b));
       g.strokeStyle = "#eef0f3"; g.beginPath(); g.moveTo(L, Yb(b)); g.lineTo(L + w, Yb(b)); g.stroke();
     }
@@ -192,6 +195,11 @@
     }
   }
 
+  // The size of the set the estimate is over (an adaptive set is refined after each episode).
+  function nHypotheses() {
+    return (state && state.n_hypotheses) || info.n_hypotheses;
+  }
+
   function render(s) {
     state = s;
     const est = s.estimate;
@@ -202,7 +210,7 @@
       fmtBeta(now.q95) + ", episode " + now.episode + ")" : "–";
     $("group").textContent = est.expertise_group + " expertise";
     $("entropy").textContent = "posterior entropy " + est.entropy.toFixed(3) + " nats of " +
-      Math.log(info.n_hypotheses).toFixed(2) + " (" + info.n_hypotheses + " hypotheses)";
+      Math.log(nHypotheses()).toFixed(2) + " (" + nHypotheses() + " hypotheses)";
     bars($("beta-bars"), est.beta_values.map((b, i) => ["β = " + fmtBeta(b), est.beta_probabilities[i]]));
     bars($("group-bars"), GROUPS.map((k) => [k, est.group_probabilities[k], "group-" + k]));
     bars($("theta-bars"), info.feature_names.map((f, i) => [f, est.theta_hat[i]]), "theta");
@@ -235,11 +243,14 @@
     const action = KEYS[ev.key];
     if (!action) return;
     ev.preventDefault();
+    if (state && state.event === "refining") return;  // the next start is chosen after the refinement
     send({ type: "move", action: action });
   });
   document.addEventListener("DOMContentLoaded", () => {
     for (const b of document.querySelectorAll(".pad button")) {
-      b.addEventListener("click", () => send({ type: "move", action: b.dataset.action }));
+      b.addEventListener("click", () => {
+        if (!(state && state.event === "refining")) send({ type: "move", action: b.dataset.action });
+      });
     }
     $("active").addEventListener("change", (ev) => send({ type: "mode", mode: ev.target.checked ? "active" : "random" }));
     connect();
