@@ -162,6 +162,7 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 
 
 def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
+    """On the study's fixed set (--no-refine; tests/test_study_refine.py refines it)."""
     out = study_dir / "out"
     key_b = None
     from expertise_irl.userstudy.run import map_key
@@ -169,13 +170,13 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
     key_b = map_key(parse_floor_plan("S...v\n.#..v\n....G\n", name="b.txt"))
     # First run: the task of floor plan b fails (injected), so the study stops with exit 1.
     monkeypatch.setenv("EXPERTISE_IRL_FAULTS", f"raise:{key_b}")
-    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1", "--no-refine")
     assert res.exit_code == 1, res.output
     assert f"inference task {key_b} failed" in res.stderr
     assert not (out / "study.csv").exists()
     monkeypatch.delenv("EXPERTISE_IRL_FAULTS")
     # The rerun runs only what is missing: b's inference task, then the two optimal tasks.
-    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1", "--no-refine")
     assert res.exit_code == 0, res.output
     assert "3 engine task(s) run, 1 already done" in res.stdout
     rows = read_csv(out / "study.csv")
@@ -245,7 +246,8 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
         ("P3", "5"),
     ]
     assert tasks[2]["demos"].endswith("p3a.csv") and tasks[2]["recording"] == ""
-    # P3's joint posterior is the normalised product of its two tasks' (uniform prior).
+    # On the study's set (--no-refine), P3's joint posterior is the normalised product of its two
+    # tasks' (uniform prior).
     doc = json.loads((out / "participants" / "P3" / "result.json").read_text())
     ll = np.array([h["log_likelihood"] for h in doc["hypotheses"]], dtype=float)
     per_task = [np.array(doc["tasks"][i]["beta_hat"]) for i in range(2)]
@@ -259,7 +261,7 @@ def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
     assert sum(ln.startswith(("| P1 |", "| P2 |", "| P3 |")) for ln in md) == 12
     before = (out / "study.csv").read_bytes()
     # A third run finds everything done and writes the same tables.
-    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1")
+    res = invoke("study", study_dir / "manifest.csv", "--out", out, "--workers", "1", "--no-refine")
     assert res.exit_code == 0 and "0 engine task(s) run, 4 already done" in res.stdout
     assert (out / "study.csv").read_bytes() == before
     # Other options or inputs on the same DIR are refused, naming what differs; nothing changes.
@@ -289,7 +291,7 @@ def assert_refused_by_name(study_dir: Path, out: Path, monkeypatch) -> None:
     assert snapshot(out) == before
     # The same study named from its own folder (other paths, same files) resumes.
     monkeypatch.chdir(study_dir)
-    res = invoke("study", "manifest.csv", "--out", "out", "--workers", "1")
+    res = invoke("study", "manifest.csv", "--out", "out", "--workers", "1", "--no-refine")
     assert res.exit_code == 0 and "0 engine task(s) run, 4 already done" in res.stdout, res.output
     # A study.json without the options and inputs: the difference cannot be named, only that there is one.
     doc = json.loads((out / "study.json").read_text())

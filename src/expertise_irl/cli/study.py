@@ -41,13 +41,21 @@ def study(
         Path, typer.Option("--out", help="Study directory (created, or resumed when it holds this study).")
     ],
     thetas: Annotated[
-        str, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values.")
-    ] = "paper-real",
+        str | None, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values (default "
+                                 "paper-real, refined per participant: see --refine).")
+    ] = None,
     betas: Annotated[
-        str, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 100 times the median gap "
-                          "between a state's two best actions, 3 per decade), a preset (paper-real, "
-                          "paper-sim) or temperatures.")
-    ] = "auto",
+        str | None, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 100 times the median "
+                                 "gap between a state's two best actions, 3 per decade; the default), a "
+                                 "preset (paper-real, paper-sim) or temperatures.")
+    ] = None,
+    refine: Annotated[
+        bool | None,
+        typer.Option("--refine/--no-refine", help="Refine each participant's hypothesis set where their "
+                     "posterior's mass is, starting from the study's set (the default when neither "
+                     "--thetas nor --betas is given; --share both, stationary expertise, discrete). A "
+                     "report choice: a rerun on the same DIR may change it."),
+    ] = None,
     method: Annotated[
         str,
         typer.Option(
@@ -117,7 +125,7 @@ def study(
     their tasks), DIR/tasks.csv (one row per manifest row), DIR/study.png and
     DIR/participants/ID/result.json and ID.png; with --models, DIR/models.csv too. Maps shared
     by participants are solved once; a second run on the same DIR resumes, and may change
-    --figures and --group-by (docs/user-studies.md).
+    --figures, --group-by and --refine (docs/user-studies.md).
     """
     from ..userstudy.evidence import parse_models
     from ..userstudy.run import ReportOptions, StudyOptions
@@ -131,9 +139,10 @@ def study(
     if models is not None and method != "discrete":
         raise InputError(f"--models needs --method discrete (got --method {method})")
     compared = parse_models(models) if models is not None else ()
+    named = thetas is not None or betas is not None
     opts = StudyOptions(
-        thetas=thetas,
-        betas=betas,
+        thetas=thetas if thetas is not None else "paper-real",
+        betas=betas if betas is not None else "auto",
         method=method,
         rate=rate,
         max_dt=max_dt,
@@ -147,7 +156,7 @@ def study(
     from ..inference.misspecification import check_level
 
     report = ReportOptions(figures=figures, group_by=group_by, population=population,
-                           check=check_level(check))
+                           check=check_level(check), refine=False if refine is None and named else refine)
     _print_outcome(_run(path, out, opts, workers, scheduler, report), out)
 
 

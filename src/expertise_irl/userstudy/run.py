@@ -98,6 +98,25 @@ class ReportOptions:
     group_by: str | None = None  # --group-by COLUMN
     population: bool = False  # --population: the hierarchical model over the participants
     check: str = "fast"  # --check off|fast|full: diagnostics.misspecification of each participant
+    # --refine/--no-refine: refine each participant's set (inference.adaptive); None: when no set is named
+    refine: bool | None = None
+
+
+#: The set a study solves when none is named (``--thetas`` / ``--betas``).
+DEFAULT_SET = ("paper-real", AUTO_BETAS)
+
+
+def refines(opts: StudyOptions, report: ReportOptions) -> bool:
+    """Whether each participant's posterior is refined from the study's set: as ``--refine`` asks, else
+    when no set is named and the posterior is one (θ, β) per participant (``--share both``,
+    stationary expertise, the discrete method)."""
+    one = opts.method == "discrete" and opts.share == "both" and opts.expertise == "stationary"
+    if report.refine is None:
+        return one and (opts.thetas, opts.betas) == DEFAULT_SET
+    if report.refine and not one:
+        raise InputError("--refine needs --method discrete, --share both and --expertise stationary "
+                         "(it refines one (θ, β) per participant)")
+    return report.refine
 
 
 class StudyFailed(Exception):
@@ -311,18 +330,10 @@ def run_study(
     """Run (or resume) the study of ``manifest_path`` into ``out`` (see the module docstring).
 
     ``on_figure(done, total)`` hears the figures being drawn."""
-    from ..models import check_model
     from .figures import select_figures
 
     t0 = time.perf_counter()
-    check_model(opts.model, "--model")
-    UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
-    check_expertise(opts)
-    if report.population:
-        from .population import check_population
-
-        check_population(opts.method, opts.share)
-    model_evidence.check_models(opts.models, opts.method)
+    refined = _check_options(opts, report)
     manifest = read_manifest(
         manifest_path, rate=opts.rate, max_dt=opts.max_dt, fill_gaps=opts.fill_gaps, snap=opts.snap
     )
@@ -357,6 +368,8 @@ def run_study(
     if opts.method == "discrete":
         ells = _episode_lls(rows)
         estimates = _discrete_estimates(manifest, ells, hyp, opts.share, opts.expertise)
+        if refined:
+            _refine_estimates(manifest, ells, estimates, opts)
     else:
         estimates = _continuous_estimates(manifest, rows, opts.share)
     evidence, s_models = None, []
@@ -370,17 +383,7 @@ def run_study(
             lls[m] = _episode_lls(rows if m == opts.model else engine.load(where))
         evidence = model_evidence.participant_evidence(manifest, lls, hyp, opts.share,
                                                        {p: e["zero_features"] for p, e in estimates.items()})
-    # Optimal paths: each row's θ̂ is its participant's (joint) θ̂, or with --share beta the task's own.
-    for t in data["tasks"]:
-        est = estimates[t["participant"]]
-        j = next(i for i, x in enumerate(manifest.tasks_of(t["participant"])) if x.index == t["task"])
-        t["theta_hat"] = list(est["task_theta"][j])
-        t["starts"] = [int(s) for s, _ in _starts(manifest.tasks[t["task"]])]
-        for k in ("episodes", "steps", "states", "actions"):
-            del t[k]
-    cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=opts.model, method=opts.method)
-    s2 = _run_phase(OPTIMAL, out / "engine" / "optimal", cfg2, "optimal", workers, scheduler, on_task)
-    optimal = engine.load(out / "engine" / "optimal")
+    s2, optimal = _optimal_phase(out, manifest, data, estimates, opts, refined, (workers, scheduler, on_task))
     inference_s = time.perf_counter() - t_inf
     population = None
     if report.population:
@@ -409,6 +412,41 @@ def run_study(
                          **({"population_s": population["document"]["timing_s"]["total"]}
                             if population else {})},
                         population["document"] if population else None)
+
+
+def _check_options(opts: StudyOptions, report: ReportOptions) -> bool:
+    """Refuse bad options before reading anything; whether the participants' sets are refined."""
+    from ..models import check_model
+
+    check_model(opts.model, "--model")
+    UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
+    check_expertise(opts)
+    refined = refines(opts, report)
+    if report.population:
+        from .population import check_population
+
+        check_population(opts.method, opts.share)
+    model_evidence.check_models(opts.models, opts.method)
+    return refined
+
+
+def _optimal_phase(out: Path, manifest: Manifest, data, estimates, opts: StudyOptions, refined: bool, run):
+    """The optimal paths' engine phase (``run``: workers, scheduler, on_task): each row's θ̂ is its
+    participant's (joint) θ̂, or with --share beta the task's own. A refined θ̂ has a phase of its
+    own, rounded to 9 decimals: the phase resumes by value, and a refinement's last digits may differ
+    between machines."""
+    for t in data["tasks"]:
+        est = estimates[t["participant"]]
+        j = next(i for i, x in enumerate(manifest.tasks_of(t["participant"])) if x.index == t["task"])
+        theta = list(est["task_theta"][j])
+        t["theta_hat"] = [round(x, 9) for x in theta] if refined else theta
+        t["starts"] = [int(s) for s, _ in _starts(manifest.tasks[t["task"]])]
+        for k in ("episodes", "steps", "states", "actions"):
+            del t[k]
+    cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=opts.model, method=opts.method)
+    where = out / "engine" / ("optimal-refined" if refined else "optimal")
+    summary = _run_phase(OPTIMAL, where, cfg2, "optimal", *run)
+    return summary, engine.load(where)
 
 
 def check_expertise(opts: StudyOptions) -> None:
@@ -508,6 +546,7 @@ def _discrete_estimates(manifest: Manifest, ells, hyps, share: str,
             warnings.append(f"no θ of the set has θ = 0 on {', '.join(names[i] for i in zero)}, so the "
                             "study could not keep them at 0; use a --thetas whose values include 0")
             zero = []
+        notes = list(warnings)  # the warnings of the data, before the posterior's
         task_ll = [ells[t.index].sum(axis=0) for t in mine]
         data = {"tasks": len(mine), "episodes": sum(t.trajectories.n_episodes for t in mine),
                 "actions": sum(len(t.trajectories) for t in mine)}
@@ -547,8 +586,41 @@ def _discrete_estimates(manifest: Manifest, ells, hyps, share: str,
         doc["diagnostics"] = {"warnings": warnings, "unavailable": {},
                               "kept_at_zero": [names[i] for i in zero]}
         out[pid] = {"doc": doc, "groups": groups, "per_task": per_task, "task_theta": task_theta,
-                    "zero_features": zero, "hypotheses": hyp}
+                    "zero_features": zero, "hypotheses": hyp, "notes": notes}
     return out
+
+
+def _refine_estimates(manifest: Manifest, ells, estimates, opts: StudyOptions) -> None:
+    """Each participant's joint posterior (``--share both``) over their set refined from the study's
+    (:func:`..inference.adaptive.refine_tasks`, starting from the sweep's log-likelihoods): the
+    estimate, modes, warnings and ``refinement`` of their result; the per-task estimates, the
+    held-out check, ``--models`` and ``--population`` stay on the study's set."""
+    from ..inference.adaptive import refine_tasks
+    from ..inference.belief import DiscreteBelief
+    from ..inference.diagnostics import discrete_warnings
+    from ..results import discrete_result
+    from .summaries import beta_summary_grid
+
+    for pid in manifest.participants:
+        mine, est = manifest.tasks_of(pid), estimates[pid]
+        names = tuple(mine[0].mdp.feature_names)
+        maps: dict[str, Any] = {}  # one object per map: refine_tasks solves each once
+        tasks = [(maps.setdefault(task_map_key(t), t.mdp), t.trajectories) for t in mine]
+        known = np.sum([ells[t.index].sum(axis=0) for t in mine], axis=0)
+        r = refine_tasks(tasks, est["hypotheses"], start_log_likelihood=known, keep_policies=False,
+                         zero_features=est["zero_features"], solve_kwargs={"model": opts.model})
+        hyp, old = r.hypotheses, est["doc"]
+        log_prior = np.log(r.prior / r.prior.sum())
+        joint = DiscreteBelief(hyp, np.zeros((len(hyp), 0, mine[0].mdp.n_actions)), log_prior,
+                               r.log_likelihood, old["data"]["actions"])
+        doc = discrete_result(joint, feature_names=names, settings={}, data=old["data"])
+        doc.update(modes=posterior_modes(joint), share=old["share"], heldout=old["heldout"],
+                   refinement=r.record)
+        doc["beta_summary"] = beta_summary_grid(*doc_beta_marginal(doc))
+        doc["diagnostics"] = {**old["diagnostics"],
+                              "warnings": r.warnings + est["notes"] + discrete_warnings(joint, names)}
+        est.update(doc=doc, groups=joint.group_probabilities(), refined=r,
+                   task_theta=[list(doc["theta_hat"])] * len(mine))
 
 
 def changing_doc(episode_ll, mine: list[StudyTask], hyp, zero) -> dict[str, Any]:
@@ -705,8 +777,10 @@ def _task_report(pid: str, t: StudyTask, optimal, pt: dict[str, Any] | None, the
     return _TaskReport(panel, row, doc, counts, counts_opt, ok)
 
 
-def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine, grid) -> dict[str, Any]:
-    """The ``settings`` of a participant's result.json (``hyp``: their hypothesis set, discrete)."""
+def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine, grid,
+              refined=None) -> dict[str, Any]:
+    """The ``settings`` of a participant's result.json (``hyp``: their hypothesis set, discrete;
+    ``refined``: the set refined from it, if it was)."""
     settings = {
         "command": "study", "manifest": str(manifest.path), "participant": pid,
         "method": opts.method, "model": opts.model, "share": opts.share, "rate": opts.rate,
@@ -719,7 +793,12 @@ def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine, grid)
                          "beta_grid": hyp.betas.tolist(),
                          "beta_grid_source": ({k: v for k, v in grid.items() if k != "betas"} if grid
                                               else f"--betas {opts.betas}"),
-                         "gamma": [t.mdp.gamma for t in mine]})
+                         "gamma": [t.mdp.gamma for t in mine], "hypotheses": "fixed"})
+    if refined is not None:  # beta_grid and its source stay: the start of the refinement
+        h = refined.hypotheses
+        settings.update({"hypotheses": "adaptive", "n_theta": h.n_theta, "n_beta": h.n_beta,
+                         "n_hypotheses": len(h), "prior": refined.record["prior"],
+                         "start": {"n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp)}})
     return settings
 
 
@@ -789,7 +868,7 @@ def _participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, 
     reached = sum(p.reached for p in parts)
     filled, snapped = sum(t.filled_gaps for t in mine), sum(t.snapped_samples for t in mine)
     episodes = sum(t.trajectories.n_episodes for t in mine)
-    settings = _settings(manifest, pid, opts, hyp, mine, grid)
+    settings = _settings(manifest, pid, opts, hyp, mine, grid, est.get("refined"))
     d = pdir / pid
     d.mkdir(exist_ok=True)
     doc = _result_doc(est, opts, settings, names, len(mine), episodes, d)
@@ -884,8 +963,10 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         from .groups import group_markdown
 
         sections += group_markdown(study_rows, report.group_by, columns=extra)
-    md = study_markdown(study_rows, feats, method=opts.method,
-                        n_hypotheses=" / ".join(str(len(h)) for h in hyps.values()) or None,
+    n_hyp = " / ".join(str(len(h)) for h in hyps.values()) or None
+    if n_hyp and any(e.get("refined") for e in estimates.values()):
+        n_hyp = f"a set refined for each participant (adaptive) from {n_hyp}"
+    md = study_markdown(study_rows, feats, method=opts.method, n_hypotheses=n_hyp,
                         modes=modes, title=f"Study {manifest.path.name}", share=opts.share,
                         warnings=warnings, grid=grid, betas=any_hyp.betas.tolist() if any_hyp else None,
                         heldout_unavailable={j[1]: j[3]["heldout"].get("unavailable") for j in jobs},
