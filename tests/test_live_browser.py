@@ -49,11 +49,13 @@ SERVER_START_S = 180  # the solve compiles JAX kernels on first use; generous fo
 
 
 @contextmanager
-def serving(map_path, out, *extra):
-    """``expertise-irl live MAP --out OUT`` on a free port; yields its URL, stops it with Ctrl-C."""
+def serving(map_path, out, *extra, named: bool = True):
+    """``expertise-irl live MAP --out OUT`` on a free port (``named``: with the set ``--thetas 0,1``;
+    else the adaptive default); yields its URL, stops it with Ctrl-C."""
     exe = Path(sys.executable).with_name("expertise-irl")
     proc = subprocess.Popen(
-        [str(exe), "live", str(map_path), "--thetas", "0,1", "--out", str(out), "--port", "0", *extra],
+        [str(exe), "live", str(map_path), *(("--thetas", "0,1") if named else ()), "--out", str(out),
+         "--port", "0", *extra],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "COLUMNS": "200"})
     url = None
@@ -192,6 +194,43 @@ def test_changing_expertise_shows_this_episodes_beta_in_chromium(tmp_path):
             shown.append(page.locator("#beta-now").inner_text())
         assert all(re.match(r"[\d.e+-]+ \(90%: .+–.+, episode 0\)", t) for t in shown), shown
         assert len(set(shown)) > 1, shown
+        assert not errors, errors
+
+
+def test_an_adaptive_set_is_refined_after_an_episode_in_chromium(tmp_path):
+    """No set named: the page starts on the coarse start set, shows the refined set (its β bars and
+    size) once an episode ends, and the next episode is driven over it."""
+    import json
+
+    from expertise_irl.inference.adaptive import START_BETAS, start_set
+
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
+    map_path, out = tmp_path / "room.txt", tmp_path / "rec"
+    map_path.write_text(MAP)
+    mdp = parse_map(MAP, name=str(map_path)).to_mdp()
+    index = parse_map(MAP).state_index()
+    expect = sync_api.expect
+
+    def here() -> int:
+        x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
+        return int(index[y, x])
+
+    with serving(map_path, out, named=False) as url, live_page(sync_api, url) as (page, errors):
+        assert page.locator("#beta-bars .track").count() == len(START_BETAS)
+        assert f"({len(start_set(5))} hypotheses)" in page.locator("#entropy").inner_text()
+        actions = path_to_goal(mdp, here())
+        for i, a in enumerate(actions):
+            page.keyboard.press(KEYS[ACTION_NAMES[a]][i % 2])
+            expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+        expect(page.locator("#message")).to_contain_text("The hypothesis set was refined to", timeout=120_000)
+        rec = json.loads((out / "result.json").read_text())["refinement"]
+        assert f"({rec['n_hypotheses']} hypotheses)" in page.locator("#entropy").inner_text()
+        assert page.locator("#beta-bars .track").count() == rec["n_beta"] != len(START_BETAS)
+        a = path_to_goal(mdp, here())[0]
+        page.keyboard.press(KEYS[ACTION_NAMES[a]][0])
+        expect(page.locator("#actions")).to_have_attribute("data-value", str(len(actions) + 1),
+                                                          timeout=30_000)
+        assert page.locator("#episode").get_attribute("data-value") == "1"
         assert not errors, errors
 
 
