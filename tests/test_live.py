@@ -689,6 +689,7 @@ def test_an_adaptive_session_resumes_on_the_same_set_and_belief(tmp_path, zone_m
     (cut / "demos.csv").write_text("\n".join(r for r in rows if not r.startswith("2,")) + "\n")
     third, _ = make_adaptive(zone_map, cut)
     assert not third.estimator.episode_open
+    assert len(third.history_beta) == third.estimator.n_observed  # no result.json: redrawn
     assert np.array_equal(third.estimator.hypotheses.beta, between[0].beta)
     assert third.estimator.estimate.beta_hat == pytest.approx(between[1].beta_hat, abs=1e-12)
 

@@ -12,6 +12,14 @@ session on a DIR that already holds ``demos.csv`` replays it, so the belief, the
 an episode cut short and the start mode (active or random, kept in ``result.json``) all
 resume. Episodes are numbered from 0 everywhere, as in the ``episode`` column of
 ``demos.csv``.
+
+With an adaptive set (``open_session(..., refine=options)``, the command's default when no set is
+named) the session starts on the start set and, after each episode, refines it from every finished
+episode (:func:`~expertise_irl.inference.methods.refined_set`, from the start set each time, as
+``infer`` does) and rebuilds the estimator over the refined set with its prior weights, every
+action replayed: the belief is the exact posterior over that set. The server runs the refinement
+in its worker thread right after telling the page that the goal was reached
+(:meth:`LiveSession.handle` with ``defer``, then :meth:`LiveSession.finish_episode`).
 """
 
 from __future__ import annotations
