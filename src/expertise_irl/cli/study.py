@@ -25,6 +25,85 @@ def resolve_manifest(spec: str) -> Path:
     return Path(str(resources.files("expertise_irl.userstudy") / BUNDLED[spec] / "manifest.csv"))
 
 
+ThetasOption = Annotated[
+    str | None, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values (default "
+                             "paper-real, refined per participant: see --refine).")
+]
+
+BetasOption = Annotated[
+    str | None, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 100 times the median "
+                             "gap between a state's two best actions, 3 per decade; the default), a "
+                             "preset (paper-real, paper-sim) or temperatures.")
+]
+
+RefineOption = Annotated[
+    bool | None,
+    typer.Option("--refine/--no-refine", help="Refine each participant's hypothesis set where their "
+                 "posterior's mass is, starting from the study's set (the default when neither "
+                 "--thetas nor --betas is given; --share both, stationary expertise, discrete). A "
+                 "report choice: a rerun on the same DIR may change it."),
+]
+
+MethodOption = Annotated[
+    str,
+    typer.Option(
+        help="discrete (the hypothesis set; joint posterior over a participant's tasks), map or nuts "
+        "(log-likelihoods of their tasks summed)."
+    ),
+]
+
+ShareOption = Annotated[
+    str,
+    typer.Option(help="What a participant's tasks share: both (one θ and one β) or beta (one β, "
+                 "a θ per task: tasks with different rewards)."),
+]
+
+ExpertiseOption = Annotated[
+    str,
+    typer.Option(help="stationary (one β per participant) or changing (--share both: a β per "
+                 "episode in task order; discrete: a sticky chain on the β grid with its Bayes "
+                 "factor, map/nuts: a log-linear learning curve; each participant's curve and "
+                 "trend, and in study.md a sign test of whether people improve)."),
+]
+
+FiguresOption = Annotated[
+    str,
+    typer.Option(help="Participant figures to draw: all, none, or N (the first N participants). "
+                 "DIR/study.png is always drawn."),
+]
+
+GroupByOption = Annotated[
+    str | None,
+    typer.Option(help="A manifest column: study.md compares β between its groups (Mann–Whitney)."),
+]
+
+PopulationOption = Annotated[
+    bool,
+    typer.Option("--population", help="Also fit the participants as one population (--method discrete, "
+                 "--share both): log β ~ Normal(μ, σ²) and θ ~ Dirichlet(α·m) over the grid, learned "
+                 "from the study (NUTS); each participant's pooled estimate beside the independent one "
+                 "in study.csv (*_pooled), DIR/population.json and population.png, a held-out "
+                 "comparison; with --group-by, each group its own (μ, σ)."),
+]
+
+CheckOption = Annotated[
+    str,
+    typer.Option("--check", help="Low expertise or missing features? off, fast (posterior predictive "
+                 "checks, the default) or full (also a per-state reward fitted with β, compared on "
+                 "held-out episodes): each result.json's diagnostics.misspecification, a warning when "
+                 "the features do not explain a participant's behaviour."),
+]
+
+ModelsOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Also compare these observation models (comma-separated, --method discrete only): "
+        "each participant's log evidence, Bayes factors and held-out check in DIR/models.csv; "
+        "the main results still use --model."
+    ),
+]
+
+
 @app.command()
 @handles_errors
 def study(
@@ -40,29 +119,10 @@ def study(
     out: Annotated[
         Path, typer.Option("--out", help="Study directory (created, or resumed when it holds this study).")
     ],
-    thetas: Annotated[
-        str | None, typer.Option(help="Θ: a preset (paper-real, paper-sim) or component values (default "
-                                 "paper-real, refined per participant: see --refine).")
-    ] = None,
-    betas: Annotated[
-        str | None, typer.Option(help="B: auto (from the maps' optimal values: 1e-3 to 100 times the median "
-                                 "gap between a state's two best actions, 3 per decade; the default), a "
-                                 "preset (paper-real, paper-sim) or temperatures.")
-    ] = None,
-    refine: Annotated[
-        bool | None,
-        typer.Option("--refine/--no-refine", help="Refine each participant's hypothesis set where their "
-                     "posterior's mass is, starting from the study's set (the default when neither "
-                     "--thetas nor --betas is given; --share both, stationary expertise, discrete). A "
-                     "report choice: a rerun on the same DIR may change it."),
-    ] = None,
-    method: Annotated[
-        str,
-        typer.Option(
-            help="discrete (the hypothesis set; joint posterior over a participant's tasks), map or nuts "
-            "(log-likelihoods of their tasks summed)."
-        ),
-    ] = "discrete",
+    thetas: ThetasOption = None,
+    betas: BetasOption = None,
+    refine: RefineOption = None,
+    method: MethodOption = "discrete",
     rate: RateOption = 1.0,
     max_dt: MaxDtOption = None,
     fill_gaps: FillGapsOption = False,
@@ -74,50 +134,13 @@ def study(
         str | None, typer.Option(help="Dask scheduler address, e.g. tcp://HOST:8786.")
     ] = None,
     model: ModelOption = "maxent",
-    share: Annotated[
-        str,
-        typer.Option(help="What a participant's tasks share: both (one θ and one β) or beta (one β, "
-                     "a θ per task: tasks with different rewards)."),
-    ] = "both",
-    expertise: Annotated[
-        str,
-        typer.Option(help="stationary (one β per participant) or changing (--share both: a β per "
-                     "episode in task order; discrete: a sticky chain on the β grid with its Bayes "
-                     "factor, map/nuts: a log-linear learning curve; each participant's curve and "
-                     "trend, and in study.md a sign test of whether people improve)."),
-    ] = "stationary",
-    figures: Annotated[
-        str,
-        typer.Option(help="Participant figures to draw: all, none, or N (the first N participants). "
-                     "DIR/study.png is always drawn."),
-    ] = "all",
-    group_by: Annotated[
-        str | None,
-        typer.Option(help="A manifest column: study.md compares β between its groups (Mann–Whitney)."),
-    ] = None,
-    population: Annotated[
-        bool,
-        typer.Option("--population", help="Also fit the participants as one population (--method discrete, "
-                     "--share both): log β ~ Normal(μ, σ²) and θ ~ Dirichlet(α·m) over the grid, learned "
-                     "from the study (NUTS); each participant's pooled estimate beside the independent one "
-                     "in study.csv (*_pooled), DIR/population.json and population.png, a held-out "
-                     "comparison; with --group-by, each group its own (μ, σ)."),
-    ] = False,
-    check: Annotated[
-        str,
-        typer.Option("--check", help="Low expertise or missing features? off, fast (posterior predictive "
-                     "checks, the default) or full (also a per-state reward fitted with β, compared on "
-                     "held-out episodes): each result.json's diagnostics.misspecification, a warning when "
-                     "the features do not explain a participant's behaviour."),
-    ] = "fast",
-    models: Annotated[
-        str | None,
-        typer.Option(
-            help="Also compare these observation models (comma-separated, --method discrete only): "
-            "each participant's log evidence, Bayes factors and held-out check in DIR/models.csv; "
-            "the main results still use --model."
-        ),
-    ] = None,
+    share: ShareOption = "both",
+    expertise: ExpertiseOption = "stationary",
+    figures: FiguresOption = "all",
+    group_by: GroupByOption = None,
+    population: PopulationOption = False,
+    check: CheckOption = "fast",
+    models: ModelsOption = None,
 ) -> None:
     """Run every participant of a study: estimates, warnings, a held-out check, Tables V–VI, figures.
 

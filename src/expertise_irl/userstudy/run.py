@@ -13,9 +13,12 @@ Steps (each engine phase is resumable: a finished task is not run again):
    (θ, β), or ``--share beta``, one β and a θ per task), the held-out check, the warnings; with
    ``--models`` (discrete only), the same inference phase once per other model, in
    ``DIR/engine/inference-<model>``, and each participant's evidence per model (:mod:`.evidence`);
-4. optimal paths on the engine, in ``DIR/engine/optimal``: one task per map, β = 0.001
-   with each participant's θ̂ (their task's with ``--share beta``), from the start of each of
-   their episodes;
+   when no set is named (``--share both``, stationary expertise), each participant's joint
+   posterior refined from the study's set (:func:`..inference.adaptive.refine_tasks`, from the
+   sweep's log-likelihoods);
+4. optimal paths on the engine, in ``DIR/engine/optimal`` (``DIR/engine/optimal-refined`` for
+   refined estimates): one task per map, β = 0.001 with each participant's θ̂ (their task's with
+   ``--share beta``), from the start of each of their episodes;
 5. the reports: ``DIR/study.csv``, ``DIR/study.md``, ``DIR/tasks.csv`` (``DIR/models.csv``
    with ``--models``), ``DIR/study.png`` and, per participant,
    ``DIR/participants/ID/result.json`` and (``--figures``) ``DIR/participants/ID/ID.png``,
@@ -23,8 +26,8 @@ Steps (each engine phase is resumable: a finished task is not run again):
 
 ``DIR/study.json`` records what the study is (inputs with their digests, options); a
 second run on the same DIR with the same inputs and options resumes, anything else is
-refused. The report options (``--figures``, ``--group-by``) are not part of it: a rerun
-with others redraws the reports from the finished engine phases.
+refused. The report options (``--figures``, ``--group-by``, ``--check``, ``--refine``) are not
+part of it: a rerun with others redraws the reports from the finished engine phases.
 """
 
 from __future__ import annotations
@@ -372,37 +375,17 @@ def run_study(
             _refine_estimates(manifest, ells, estimates, opts)
     else:
         estimates = _continuous_estimates(manifest, rows, opts.share)
-    evidence, s_models = None, []
-    if opts.models:
-        lls = {}
-        for m in opts.models:
-            where = out / "engine" / ("inference" if m == opts.model else f"inference-{m}")
-            if m != opts.model:
-                s_models.append(_run_phase(DISCRETE, where, replace(cfg, model=m), f"inference ({m})",
-                                           workers, scheduler, on_task))
-            lls[m] = _episode_lls(rows if m == opts.model else engine.load(where))
-        evidence = model_evidence.participant_evidence(manifest, lls, hyp, opts.share,
-                                                       {p: e["zero_features"] for p, e in estimates.items()})
+    evidence, s_models = _evidence_phases(out, manifest, rows, cfg, hyp, estimates, opts,
+                                          (workers, scheduler, on_task))
     s2, optimal = _optimal_phase(out, manifest, data, estimates, opts, refined, (workers, scheduler, on_task))
     inference_s = time.perf_counter() - t_inf
-    population = None
-    if report.population:
-        from .population import run_population
-
-        population = run_population(manifest, ells, estimates, report.group_by)
-        for pid, values in population["participants"].items():
-            estimates[pid]["doc"]["population"] = values
+    population = _population(manifest, ells, estimates, report) if report.population else None
     t_rep = time.perf_counter()
     participants, jobs = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence, grid, report,
                                   population)
     report_s = time.perf_counter() - t_rep
     t_fig = time.perf_counter()
-    _draw(out, jobs, figures_for, participants, names, manifest, workers, scheduler, on_figure)
-    if population is not None:
-        from ..plots.population import render_population_png
-
-        render_population_png(out / "population.png", population, list(names),
-                              title=f"Population of {manifest.path.name}")
+    _draw(out, jobs, figures_for, participants, names, manifest, workers, scheduler, on_figure, population)
     figures_s = time.perf_counter() - t_fig
     ran = s1.ran + s2.ran + sum(s.ran for s in s_models)
     skipped = s1.skipped + s2.skipped + sum(s.skipped for s in s_models)
@@ -412,6 +395,16 @@ def run_study(
                          **({"population_s": population["document"]["timing_s"]["total"]}
                             if population else {})},
                         population["document"] if population else None)
+
+
+def _population(manifest: Manifest, ells, estimates, report: ReportOptions) -> dict[str, Any]:
+    """``--population``: the population fit, each participant's pooled values put in their result."""
+    from .population import run_population
+
+    population = run_population(manifest, ells, estimates, report.group_by)
+    for pid, values in population["participants"].items():
+        estimates[pid]["doc"]["population"] = values
+    return population
 
 
 def _check_options(opts: StudyOptions, report: ReportOptions) -> bool:
@@ -428,6 +421,22 @@ def _check_options(opts: StudyOptions, report: ReportOptions) -> bool:
         check_population(opts.method, opts.share)
     model_evidence.check_models(opts.models, opts.method)
     return refined
+
+
+def _evidence_phases(out: Path, manifest: Manifest, rows, cfg, hyp, estimates, opts: StudyOptions, run):
+    """``--models``: the inference phase once per other model (``run``: workers, scheduler, on_task) and
+    each participant's evidence per model; ``(None, [])`` without it."""
+    if not opts.models:
+        return None, []
+    lls, summaries = {}, []
+    for m in opts.models:
+        where = out / "engine" / ("inference" if m == opts.model else f"inference-{m}")
+        if m != opts.model:
+            summaries.append(_run_phase(DISCRETE, where, replace(cfg, model=m), f"inference ({m})", *run))
+        lls[m] = _episode_lls(rows if m == opts.model else engine.load(where))
+    evidence = model_evidence.participant_evidence(manifest, lls, hyp, opts.share,
+                                                   {p: e["zero_features"] for p, e in estimates.items()})
+    return evidence, summaries
 
 
 def _optimal_phase(out: Path, manifest: Manifest, data, estimates, opts: StudyOptions, refined: bool, run):
@@ -980,8 +989,9 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
 
 
 def _draw(out: Path, jobs, chosen: list[str], rows, names, manifest: Manifest, workers, scheduler,
-          on_figure) -> None:
-    """The participants' figures chosen by ``--figures`` (in parallel) and the study's figure."""
+          on_figure, population=None) -> None:
+    """The participants' figures chosen by ``--figures`` (in parallel), the study's figure and
+    (``--population``) the population's."""
     from ..plots.study_overview import render_study_png
     from .figures import draw_figures
 
@@ -990,6 +1000,11 @@ def _draw(out: Path, jobs, chosen: list[str], rows, names, manifest: Manifest, w
     if todo:
         draw_figures(todo, workers=workers, scheduler=scheduler, on_progress=on_figure)
     render_study_png(out / "study.png", rows, list(names), title=f"Study {manifest.path.name}")
+    if population is not None:
+        from ..plots.population import render_population_png
+
+        render_population_png(out / "population.png", population, list(names),
+                              title=f"Population of {manifest.path.name}")
 
 
 def _misspecification(doc: dict[str, Any], mine: list[StudyTask], opts: StudyOptions, check: str,
