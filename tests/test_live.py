@@ -650,6 +650,15 @@ def test_an_adaptive_session_refines_its_set_after_each_episode(tmp_path, zone_m
             assert doc["refinement"]["n_hypotheses"] == len(got) == doc["settings"]["n_hypotheses"]
             assert doc["beta_hat"] == pytest.approx(want.mean_beta, rel=1e-9)
             assert doc["live"]["history"]["beta_hat"] == session.history_beta
+    # result.json is infer's result on demos.csv (same set, same posterior).
+    (tmp_path / "small.txt").write_text(MAP)
+    ok(invoke("infer", tmp_path / "small.txt", "--demos", tmp_path / "demos.csv",
+              "--out", tmp_path / "i.json"))
+    doc, inferred = (json.loads((tmp_path / n).read_text()) for n in ("result.json", "i.json"))
+    assert inferred["settings"]["hypotheses"] == "adaptive"
+    assert inferred["refinement"]["betas"] == doc["refinement"]["betas"]
+    assert inferred["beta_hat"] == pytest.approx(doc["beta_hat"], rel=1e-9)
+    assert inferred["theta_hat"] == pytest.approx(doc["theta_hat"], rel=1e-9)
     # What the page showed during episode 0 was the posterior over the start set.
     ep0 = read_demos_csv(tmp_path / "demos.csv", mdp).episodes()[0]
     n0 = len(ep0[1])
