@@ -118,10 +118,11 @@ def test_a_study_made_without_refinement_resumes_and_may_refine(study):
     ident = (out / "study.json").read_bytes()
     assert "refinement" not in result(out, "P1") and "refine" not in json.loads(ident)["options"]
     fixed = (out / "study.csv").read_bytes()
-    res = invoke("study", m, "--out", out, *args)
+    res = invoke("study", m, "--out", out, *args[:-1], "2")  # the participants refined in 2 processes
     ok(res)
     assert "2 engine task(s) run, 2 already done" in res.stdout  # the refined θ̂'s optimal paths only
     assert "refinement" in result(out, "P1") and (out / "study.json").read_bytes() == ident
+    assert (out / "study.csv").read_bytes() == (study / "default" / "study.csv").read_bytes()
     res = invoke("study", m, "--out", out, "--no-refine", *args)
     ok(res)
     assert "0 engine task(s) run, 4 already done" in res.stdout and (out / "study.csv").read_bytes() == fixed

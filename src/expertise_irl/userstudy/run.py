@@ -35,6 +35,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -372,7 +373,7 @@ def run_study(
         ells = _episode_lls(rows)
         estimates = _discrete_estimates(manifest, ells, hyp, opts.share, opts.expertise)
         if refined:
-            _refine_estimates(manifest, ells, estimates, opts)
+            _refine_estimates(manifest, ells, estimates, opts, workers)
     else:
         estimates = _continuous_estimates(manifest, rows, opts.share)
     evidence, s_models = _evidence_phases(out, manifest, rows, cfg, hyp, estimates, opts,
@@ -599,37 +600,70 @@ def _discrete_estimates(manifest: Manifest, ells, hyps, share: str,
     return out
 
 
-def _refine_estimates(manifest: Manifest, ells, estimates, opts: StudyOptions) -> None:
+def _refine_estimates(manifest: Manifest, ells, estimates, opts: StudyOptions,
+                      workers: int | None = None) -> None:
     """Each participant's joint posterior (``--share both``) over their set refined from the study's
     (:func:`..inference.adaptive.refine_tasks`, starting from the sweep's log-likelihoods): the
     estimate, modes, warnings and ``refinement`` of their result; the per-task estimates, the
-    held-out check, ``--models`` and ``--population`` stay on the study's set."""
+    held-out check, ``--models`` and ``--population`` stay on the study's set. The participants are
+    refined in ``workers`` local processes (default one per core; 1: here)."""
+    jobs = {}
+    for pid in manifest.participants:
+        mine, est = manifest.tasks_of(pid), estimates[pid]
+        maps: dict[str, Any] = {}  # one object per map: refine_tasks solves each once
+        tasks = [(maps.setdefault(task_map_key(t), t.mdp), t.trajectories) for t in mine]
+        known = np.sum([ells[t.index].sum(axis=0) for t in mine], axis=0)
+        jobs[pid] = (tasks, est["hypotheses"], known, tuple(est["zero_features"]), opts.model)
+    for pid, r in _refinements(jobs, workers).items():
+        _use_refined(manifest.tasks_of(pid), estimates[pid], r)
+
+
+def refine_participant(tasks, start, known, zero, model: str):
+    """One participant's refinement (a worker's job: module level, plain arguments)."""
     from ..inference.adaptive import refine_tasks
+    from ..planning.jax_cache import enable_jax_cache
+
+    enable_jax_cache()
+    return refine_tasks(tasks, start, start_log_likelihood=known, keep_policies=False, zero_features=zero,
+                        solve_kwargs={"model": model})
+
+
+def _refinements(jobs: dict[str, tuple], workers: int | None) -> dict[str, Any]:
+    """``{participant: Refined}``, on a ``spawn`` pool of ``workers`` processes (here when 1)."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ..experiments.workers import _exit_with_parent
+    from .figures import cores
+
+    n = min(workers or cores(), len(jobs))
+    if n <= 1:
+        return {pid: refine_participant(*job) for pid, job in jobs.items()}
+    with ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"), initializer=_exit_with_parent,
+                             initargs=(os.getpid(),)) as pool:
+        futures = {pid: pool.submit(refine_participant, *job) for pid, job in jobs.items()}
+        return {pid: f.result() for pid, f in futures.items()}
+
+
+def _use_refined(mine: list[StudyTask], est: dict[str, Any], r) -> None:
+    """A participant's estimate, result document and warnings from their refined set ``r``."""
     from ..inference.belief import DiscreteBelief
     from ..inference.diagnostics import discrete_warnings
     from ..results import discrete_result
     from .summaries import beta_summary_grid
 
-    for pid in manifest.participants:
-        mine, est = manifest.tasks_of(pid), estimates[pid]
-        names = tuple(mine[0].mdp.feature_names)
-        maps: dict[str, Any] = {}  # one object per map: refine_tasks solves each once
-        tasks = [(maps.setdefault(task_map_key(t), t.mdp), t.trajectories) for t in mine]
-        known = np.sum([ells[t.index].sum(axis=0) for t in mine], axis=0)
-        r = refine_tasks(tasks, est["hypotheses"], start_log_likelihood=known, keep_policies=False,
-                         zero_features=est["zero_features"], solve_kwargs={"model": opts.model})
-        hyp, old = r.hypotheses, est["doc"]
-        log_prior = np.log(r.prior / r.prior.sum())
-        joint = DiscreteBelief(hyp, np.zeros((len(hyp), 0, mine[0].mdp.n_actions)), log_prior,
-                               r.log_likelihood, old["data"]["actions"])
-        doc = discrete_result(joint, feature_names=names, settings={}, data=old["data"])
-        doc.update(modes=posterior_modes(joint), share=old["share"], heldout=old["heldout"],
-                   refinement=r.record)
-        doc["beta_summary"] = beta_summary_grid(*doc_beta_marginal(doc))
-        doc["diagnostics"] = {**old["diagnostics"],
-                              "warnings": r.warnings + est["notes"] + discrete_warnings(joint, names)}
-        est.update(doc=doc, groups=joint.group_probabilities(), refined=r,
-                   task_theta=[list(doc["theta_hat"])] * len(mine))
+    names = tuple(mine[0].mdp.feature_names)
+    hyp, old = r.hypotheses, est["doc"]
+    log_prior = np.log(r.prior / r.prior.sum())
+    joint = DiscreteBelief(hyp, np.zeros((len(hyp), 0, mine[0].mdp.n_actions)), log_prior,
+                           r.log_likelihood, old["data"]["actions"])
+    doc = discrete_result(joint, feature_names=names, settings={}, data=old["data"])
+    doc.update(modes=posterior_modes(joint), share=old["share"], heldout=old["heldout"], refinement=r.record)
+    doc["beta_summary"] = beta_summary_grid(*doc_beta_marginal(doc))
+    doc["diagnostics"] = {**old["diagnostics"],
+                          "warnings": r.warnings + est["notes"] + discrete_warnings(joint, names)}
+    est.update(doc=doc, groups=joint.group_probabilities(), refined=r,
+               task_theta=[list(doc["theta_hat"])] * len(mine))
 
 
 def changing_doc(episode_ll, mine: list[StudyTask], hyp, zero) -> dict[str, Any]:
