@@ -78,7 +78,8 @@ class TrendMAP:
         beta0: β̂_0, the first episode's expertise.
         slope: λ̂ = log(β̂_last/β̂_0).
         betas: ``[E]`` β̂_e = β̂_0·exp(λ̂·g(e)).
-        log_posterior: log-likelihood + :func:`log_prior_trend` at the optimum.
+        log_posterior: log-likelihood + :func:`log_prior_trend` + θ's Dirichlet(α) in z at the optimum
+            (at z's optimal scale α·Σ log θ_i + Kα·log(Kα) − Kα; :func:`.priors.log_prior_unconstrained`).
         optima: ``[n_starts]`` the log-posterior each start reached (the best is reported).
         evaluations: total objective-and-gradient evaluations.
         starts: ``[n_starts, K + 2]`` each start's (θ, β_0, λ).
