@@ -273,3 +273,12 @@ def test_a_time_cap_stops_with_a_warning(mdp, person, tmp_path):
     assert len(r.warnings) == 1 and "the posterior is the best so far" in r.warnings[0]
     with pytest.raises(InputError, match="--max-seconds must be a finite number > 0"):
         DiscreteOptions(max_seconds=0.0)
+
+
+def test_a_cap_below_the_start_set_is_refused(mdp, person):
+    from expertise_irl.errors import InputError
+
+    _, _, trajs = person
+    hyp = start_set(mdp.n_features)
+    with pytest.raises(InputError, match=f"--max-hypotheses 3 is below the {len(hyp)} hypotheses"):
+        refine(mdp, trajs, hyp, theta_step=0.25, settings=Refinement(max_hypotheses=3))

@@ -556,10 +556,14 @@ def refine_tasks(tasks: Sequence[tuple[TabularMDP, Trajectories]], start: Hypoth
     apply). ``zero_features``: components kept at 0 (the start's θ with another value there leave
     the set, and refinement adds none).
     """
+    if settings.max_hypotheses < len(start):
+        raise InputError(f"--max-hypotheses {settings.max_hypotheses} is below the {len(start)} hypotheses "
+                         "of the set the refinement starts from")
     pool, jobs = _start_pool(tasks, start, theta_step, start_log_likelihood, keep_policies, zero_features)
     K, kw, t0 = start.thetas.shape[1], dict(solve_kwargs or {}), time.perf_counter()
     cells = jobs.cells if keep_policies else 0
     solved = _solve_missing(pool, jobs, kw, progress, 0)
+    known = len(start) if start_log_likelihood is not None else 0  # counts towards the cap as solved
     st = _stats(pool, K)
     rounds = [] if st is None else [_round_entry(0, pool, st, solved, time.perf_counter() - t0, None)]
     stop, warnings, pruned, converged = IMPOSSIBLE, [], 0.0, False
@@ -586,7 +590,7 @@ def refine_tasks(tasks: Sequence[tuple[TabularMDP, Trajectories]], start: Hypoth
             pool.add_beta(b, START_BETA_STEP, 0)
         _halve_betas(pool, bt)
         _halve_thetas(pool, st, tt, K)
-        cap = _cap(pool, settings, solved, t0, cells)
+        cap = _cap(pool, settings, solved + known, t0, cells)
         if cap is not None:
             pool.restore(snap)
             stop = cap

@@ -364,7 +364,7 @@ def _coarse_or_not(mis: dict[str, Any], tasks, refit, *, check: str, model: str,
                              seed=seed, **post)
     refined = {"n_hypotheses": size, "beta_hat": float(beta_hat), "theta_hat": [float(x) for x in theta_hat],
                "verdict": again["verdict"], "reason": again["reason"]}
-    if again["verdict"] == UNEXPLAINED:
+    if again["verdict"] != EXPLAINED:  # only a refined set the features explain shows the set was coarse
         return {**mis, "refined": refined}
     theta = ", ".join(f"{x:.3g}" for x in theta_hat)
     return {**again, "verdict": COARSE, "first": {"verdict": mis["verdict"], "reason": mis["reason"]},
