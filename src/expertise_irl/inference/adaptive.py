@@ -198,10 +198,11 @@ class _Pool:
                        max(BETA_LIMITS[1], float(hyp.betas.max())))
         return pool
 
-    def log_weights(self, n_features: int) -> tuple[np.ndarray, np.ndarray]:
-        """log prior weights of the active θ and β (unnormalised)."""
+    def log_weights(self, n_features: int, betas: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """log prior weights of the active θ and of ``betas`` (default: the active β), unnormalised."""
         lt = np.array([-(n_features - 1) * self.theta_level[i] * math.log(2) for i in self.active_t])
-        lb = np.array([-self.beta_level[j] * math.log(2) for j in self.active_b])
+        order = self.active_b if betas is None else betas
+        lb = np.array([-self.beta_level[j] * math.log(2) for j in order])
         return lt, lb
 
     def missing(self) -> list[tuple[int, int]]:
@@ -655,8 +656,7 @@ def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: l
     if keep_policies:
         per_map = [np.stack(m) for m in zip(*(pool.policy[k] for k in pairs), strict=True)]
         log_policy = per_map[0] if len(per_map) == 1 else tuple(per_map)
-    lt = np.array([-(K - 1) * pool.theta_level[i] * math.log(2) for i in pool.active_t])
-    lb = np.array([-pool.beta_level[j] * math.log(2) for j in order_b])
+    lt, lb = pool.log_weights(K, order_b)
     logw = (lt[:, None] + lb[None, :]).ravel()
     prior = np.exp(logw - logw.max())
     s = info.pop("settings")
