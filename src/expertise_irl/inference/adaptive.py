@@ -56,6 +56,8 @@ START_BETA_STEP = 0.5
 #: found β* > 5 indistinguishable from 5): a set reaching 100 turns that flat tail into an E[β] of
 #: 20–40 for people of β* = 3–9 (benchmarks/off_grid.py), where the paper's grid reads 6–7.
 BETA_LIMITS = (1e-3, 10.0)
+#: Memory the solved hypotheses' values may take to start the next round's solves (above it, cold starts).
+WARM_VALUE_BYTES = 512 * 2**20
 #: The finest β spacing refinement makes (decades; 0.0156 ≈ 3.6% in β).
 BETA_MIN_STEP = 0.5 / 2**5
 #: The finest θ spacing refinement makes (per component).
@@ -181,7 +183,10 @@ class _Pool:
     active_b: list[int] = field(default_factory=list)
     ll: dict[tuple[int, int], float] = field(default_factory=dict)
     policy: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
+    value: dict[tuple[int, int], tuple[np.ndarray, ...]] = field(default_factory=dict)  # warm starts
     keys: dict[bytes, int] = field(default_factory=dict)
+    sweeps: int = 0  # backups spent on the hypotheses solved (padding not counted)
+    parent: dict[int, int] = field(default_factory=dict)  # a refined θ: the θ it was halved from
     limits: tuple[float, float] = BETA_LIMITS  # where β may go: BETA_LIMITS, widened to the start's range
     zero: tuple[int, ...] = ()  # components kept at 0
 
@@ -208,10 +213,12 @@ class _Pool:
     def missing(self) -> list[tuple[int, int]]:
         return [(i, j) for i in self.active_t for j in self.active_b if (i, j) not in self.ll]
 
-    def add_theta(self, theta: np.ndarray, step: float, level: int) -> None:
+    def add_theta(self, theta: np.ndarray, step: float, level: int, parent: int | None = None) -> None:
         key = _key(theta)
         if key in self.keys:
             return
+        if parent is not None:
+            self.parent[len(self.thetas)] = parent
         self.keys[key] = len(self.thetas)
         self.thetas.append(theta)
         self.theta_step.append(step)
@@ -237,6 +244,8 @@ class _Pool:
         nt, nb, tl, bl, at, ab = snap
         for t in self.thetas[nt:]:
             del self.keys[_key(t)]
+        for i in [i for i in self.parent if i >= nt]:
+            del self.parent[i]
         del self.thetas[nt:], self.theta_step[nt:], self.betas[nb:], self.beta_step[nb:]
         self.theta_level, self.beta_level, self.active_t, self.active_b = tl, bl, at, ab
 
@@ -398,7 +407,7 @@ def _halve_thetas(pool: _Pool, st: _Stats, todo: list[int], n_features: int) -> 
                 new[b] = max(new[b] - h, 0.0)
                 new /= new.sum()
                 if np.all((new >= lo) & (new <= hi)):
-                    pool.add_theta(new, pool.theta_step[i], pool.theta_level[i])
+                    pool.add_theta(new, pool.theta_step[i], pool.theta_level[i], parent=i)
 
 
 def _prune(pool: _Pool, st: _Stats) -> float:
@@ -410,8 +419,9 @@ def _prune(pool: _Pool, st: _Stats) -> float:
     gone_b = {j for j, k in zip(pool.active_b, keep_b, strict=True) if not k}
     pool.active_t = [i for i in pool.active_t if i not in gone_t]
     pool.active_b = [j for j in pool.active_b if j not in gone_b]
-    for key in [k for k in pool.policy if k[0] in gone_t or k[1] in gone_b]:
-        del pool.policy[key]
+    for store in (pool.policy, pool.value):
+        for key in [k for k in store if k[0] in gone_t or k[1] in gone_b]:
+            del store[key]
     return dropped
 
 
@@ -472,7 +482,13 @@ class _Tasks:
 
 def _solve_missing(pool: _Pool, tasks: _Tasks, solve_kwargs: dict, progress: Callable | None,
                    done: int) -> int:
-    """Solve the active hypotheses not solved yet on every map; how many that was."""
+    """Solve the active hypotheses not solved yet on every map; how many that was.
+
+    Each new hypothesis starts from the values of its nearest solved one (:func:`_warm_starts`),
+    and the batch is padded to a bucket's size with solved hypotheses started from their own
+    values, which settle in a sweep or two; the pool's sweeps certify the tolerance whatever the
+    start, so only the number of sweeps depends on it.
+    """
     from ..planning.soft_vi import solve
     from ..planning.table_likelihood import log_likelihood
 
@@ -481,29 +497,84 @@ def _solve_missing(pool: _Pool, tasks: _Tasks, solve_kwargs: dict, progress: Cal
         return 0
     n, G = len(pairs), len(tasks.maps)
     bucket = next(b for b in _buckets() if b >= n)  # a few shapes, each compiled once
-    padded = pairs + [pairs[-1]] * (bucket - n)
+    padded, starts = _warm_starts(pool, pairs, bucket)
     theta = np.array([pool.thetas[i] for i, _ in padded])
     beta = np.array([pool.betas[j] for _, j in padded])
-    ll, policies = np.zeros(n), []
+    ll, policies, values = np.zeros(n), [], []
     for g, (mdp, shown) in enumerate(tasks.maps):
         tick = None if progress is None else (
             lambda d, t, g=g: progress(done + min((g * t + d) * n // (G * t), n), done + n))
-        lp = np.asarray(solve(mdp, theta, beta, progress=tick, **solve_kwargs).log_policy)[:n]
+        v0 = None if starts is None else starts[g]
+        sol = solve(mdp, theta, beta, progress=tick, v_init=v0, **solve_kwargs)
+        lp = np.asarray(sol.log_policy)[:n]
+        pool.sweeps += int(np.sum(sol.iterations[:n]))
         for trajs in shown:
             ll += log_likelihood(lp, trajs.state, trajs.action)
         if tasks.keep_policies:
             policies.append(lp)
+        values.append(np.asarray(sol.value)[:n])
+    keep_values = _value_bytes(pool, tasks, n) <= WARM_VALUE_BYTES
     for k, key in enumerate(pairs):
         pool.ll[key] = float(ll[k])
         if tasks.keep_policies:
             pool.policy[key] = tuple(lp[k] for lp in policies)
+        if keep_values:
+            pool.value[key] = tuple(v[k] for v in values)
     return len(pairs)
 
 
-def _round_entry(r: int, pool: _Pool, st: _Stats, solved: int, seconds: float,
+def _warm_starts(pool: _Pool, pairs: list[tuple[int, int]], bucket: int
+                 ) -> tuple[list[tuple[int, int]], list[np.ndarray] | None]:
+    """``pairs`` padded to ``bucket``, and per map the ``[bucket, S]`` values that start them.
+
+    A new hypothesis starts from its θ's solved values (a new θ: those of the θ it was halved
+    from): interpolated in ln β between the two solved β around its own (a halving's midpoint: the
+    error is second order in the spacing), else those of the nearest solved β; with none, cold
+    (zeros). The padding repeats solved hypotheses, each started from its own values, so it costs
+    a sweep or two. Before anything is solved (or when the values are not kept) every start is
+    cold (None) and the padding repeats the last pair.
+    """
+    if not pool.value:
+        return pairs + [pairs[-1]] * (bucket - len(pairs)), None
+    by_theta: dict[int, list[tuple[float, tuple[int, int]]]] = {}
+    for key in pool.value:
+        by_theta.setdefault(key[0], []).append((math.log(pool.betas[key[1]]), key))
+    solved = list(pool.value)
+    fill = [solved[k % len(solved)] for k in range(bucket - len(pairs))]
+    starts = []
+    for g in range(len(pool.value[solved[0]])):
+        zero = np.zeros_like(pool.value[solved[0]][g])
+        rows = []
+        for i, j in pairs:
+            near = by_theta.get(i) or by_theta.get(pool.parent.get(i, -1)) or []
+            v = _from_neighbours(pool, near, math.log(pool.betas[j]), g)
+            rows.append(zero if v is None else v)
+        starts.append(np.stack(rows + [pool.value[k][g] for k in fill]))
+    return pairs + fill, starts
+
+
+def _from_neighbours(pool: _Pool, same_theta: list, b: float, g: int) -> np.ndarray | None:
+    """Map ``g``'s values at ln β = ``b`` from one θ's solved β (``same_theta``: (ln β, key) pairs):
+    interpolated between the nearest below and above, else the nearest; None when there are none."""
+    if not same_theta:
+        return None
+    lo = max((x for x in same_theta if x[0] < b), default=None, key=lambda x: x[0])
+    hi = min((x for x in same_theta if x[0] > b), default=None, key=lambda x: x[0])
+    if lo is None or hi is None:
+        return pool.value[min(same_theta, key=lambda x: abs(x[0] - b))[1]][g]
+    w = (b - lo[0]) / (hi[0] - lo[0])
+    return (1 - w) * pool.value[lo[1]][g] + w * pool.value[hi[1]][g]
+
+
+def _value_bytes(pool: _Pool, tasks: _Tasks, new: int) -> int:
+    """Bytes the kept start values would take with ``new`` more hypotheses."""
+    return (len(pool.value) + new) * sum(m.n_states for m, _ in tasks.maps) * 8
+
+
+def _round_entry(r: int, pool: _Pool, st: _Stats, solved: int, sweeps: int, seconds: float,
                  ch: dict[str, float] | None) -> dict[str, Any]:
     return {"round": r, "n_theta": len(pool.active_t), "n_beta": len(pool.active_b), "solved": solved,
-            "seconds": seconds, "beta_hat": st.beta_hat, "theta_hat": st.theta_hat.tolist(),
+            "sweeps": sweeps, "seconds": seconds, "beta_hat": st.beta_hat, "theta_hat": st.theta_hat.tolist(),
             "beta_interval": list(st.beta_interval), "theta_intervals": st.theta_intervals.tolist(),
             "changes": ch}
 
@@ -566,7 +637,8 @@ def refine_tasks(tasks: Sequence[tuple[TabularMDP, Trajectories]], start: Hypoth
     solved = _solve_missing(pool, jobs, kw, progress, 0)
     known = len(start) if start_log_likelihood is not None else 0  # counts towards the cap as solved
     st = _stats(pool, K)
-    rounds = [] if st is None else [_round_entry(0, pool, st, solved, time.perf_counter() - t0, None)]
+    rounds = [] if st is None else [_round_entry(0, pool, st, solved, pool.sweeps, time.perf_counter() - t0,
+                                                 None)]
     stop, warnings, pruned, converged = IMPOSSIBLE, [], 0.0, False
     for r in range(1, settings.max_rounds + 2):  # the last pass only asks whether it settled
         if st is None:
@@ -597,12 +669,14 @@ def refine_tasks(tasks: Sequence[tuple[TabularMDP, Trajectories]], start: Hypoth
             stop = cap
             warnings.append(_cap_warning(cap, r - 1, last))
             break
-        t1 = time.perf_counter()
+        t1, s1 = time.perf_counter(), pool.sweeps
         n = _solve_missing(pool, jobs, kw, progress, solved)
         solved += n
         prev, st = st, _stats(pool, K)
-        rounds.append(_round_entry(r, pool, st, n, time.perf_counter() - t1, st.changes(prev)))
+        rounds.append(_round_entry(r, pool, st, n, pool.sweeps - s1, time.perf_counter() - t1,
+                                   st.changes(prev)))
     return _finish(pool, K, rounds, {"converged": converged, "stop_reason": stop, "solved": solved,
+                                     "sweeps": pool.sweeps,
                                      "pruned_mass": pruned, "seconds": time.perf_counter() - t0,
                                      "settings": settings}, warnings, keep_policies)
 
