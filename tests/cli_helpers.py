@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 from typer.testing import CliRunner
 
 from expertise_irl.cli import app
@@ -34,3 +37,13 @@ def assert_input_error(result, *fragments: str) -> str:
     for fragment in fragments:
         assert fragment in line, f"{fragment!r} not in {line!r}"
     return line
+
+
+def load(path: Path) -> dict:
+    """A JSON file's content."""
+    return json.loads(Path(path).read_text(encoding="utf-8"))
+
+
+def snapshot(path: Path) -> tuple[bytes, int]:
+    """A file's bytes and mtime, to tell that it was left alone."""
+    return path.read_bytes(), path.stat().st_mtime_ns

@@ -6,6 +6,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 # The solver's lane width is fixed for the suite (results agree within the tolerance whatever the
-# width, but one width keeps them identical from machine to machine); tests/test_tuning.py
+# width, but one width keeps them identical from machine to machine); tests/planning/test_tuning.py
 # measures and caches it in a folder of its own.
 os.environ.setdefault("EXPERTISE_IRL_LANES", "8")

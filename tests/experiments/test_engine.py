@@ -25,7 +25,7 @@ from expertise_irl.experiments.studies.fixed_vs_joint import SCALES, person
 
 STUDY = get_study("conditions")
 SMOKE = SCALES["smoke"]
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "experiments.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments.md"
 IDENTITY = ["environment", "run", "k", "group", "truth", "condition", "method", "episodes"]
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_cli import assert_input_error, invoke, load, ok, snapshot
+from cli_helpers import assert_input_error, invoke, load, ok, snapshot
 
 from expertise_irl.inference.priors import BETA_PRIOR_MEAN, BETA_PRIOR_SD, BETA_RANGE, PRIOR_TEXT, prior_text
 
@@ -88,7 +88,7 @@ def test_prior_is_stated_in_help_output_and_result(one_episode, tmp_path):
     paper = f"Normal({BETA_PRIOR_MEAN:g}, {BETA_PRIOR_SD:g}) truncated to [{lo:g}, {hi:g}]"
     default = "log β uniform on [0.001, 100]"
     help_text = " ".join(invoke("infer", "--help").output.replace("│", " ").split())
-    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8").split())
+    readme = " ".join((Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8").split())
     for words in (paper, default):
         assert words in help_text and words in readme, words
     for prior, text in (("log-uniform", PRIOR_TEXT), ("paper", prior_text("paper"))):

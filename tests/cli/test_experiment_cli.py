@@ -83,7 +83,7 @@ def test_readme_times_of_the_paper_runs_are_the_list_estimates():
     from expertise_irl.cli.experiment import estimate_s
     from expertise_irl.experiments.studies import studies
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
     pattern = r"experiment run (\w+) .*--scale (\w+)(?: --workers (\d+))?\s+#.*≈ ([\d.]+) (s|min)"
     found = re.findall(pattern, readme)
     assert len(found) >= 4, found

@@ -20,7 +20,7 @@ from expertise_irl.userstudy.figures import draw_figures, select_figures
 from expertise_irl.worlds.warehouse import load_floor_plan
 from expertise_irl.worlds.zones import load_bundled
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "expertise_irl" / "userstudy" / "example"
+EXAMPLE = Path(__file__).resolve().parents[2] / "src" / "expertise_irl" / "userstudy" / "example"
 WH_NAMES = ["length", "restricted", "road"]
 ZONE_NAMES = ["length", "road", "avoid", "slow", "traffic"]
 

@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from test_live import path_to_goal
+from goal_paths import path_to_goal
 
 from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.mdp import ACTION_NAMES

@@ -5,12 +5,12 @@ commands."""
 from __future__ import annotations
 
 import json
-from collections import deque
 
 import numpy as np
 import pytest
+from cli_helpers import assert_input_error, invoke, ok
+from goal_paths import path_to_goal
 from starlette.testclient import TestClient
-from test_cli import assert_input_error, invoke, ok
 
 from expertise_irl.demos.csv_io import read_demos_csv
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
@@ -43,27 +43,6 @@ def make(zone_map, hyp, out, **kw):
     session = open_session(zone_map, hyp, out, settings={"command": "live", "mdp_digest": "sha256:x"}, **kw)
     client = TestClient(create_app(session, allowed_hosts=list(LOOPBACK_NAMES)), base_url=BASE)
     return session, client
-
-
-def path_to_goal(mdp, s: int) -> list[int]:
-    """Actions of a shortest path from state s to a goal (BFS)."""
-    prev = {s: None}
-    queue = deque([s])
-    while queue:
-        u = queue.popleft()
-        if mdp.terminal[u]:
-            actions = []
-            while prev[u] is not None:
-                p, a = prev[u]
-                actions.append(a)
-                u = p
-            return actions[::-1]
-        for a in range(mdp.n_actions):
-            v = int(mdp.next_state[u, a])
-            if v >= 0 and v not in prev:
-                prev[v] = (u, a)
-                queue.append(v)
-    raise AssertionError("no path")
 
 
 def move(ws, action: str) -> dict:

@@ -11,7 +11,7 @@ import pytest
 
 from expertise_irl.experiments.report import build_report
 
-ROOT = Path(__file__).resolve().parents[1] / "docs" / "reproduction"
+ROOT = Path(__file__).resolve().parents[2] / "docs" / "reproduction"
 #: Every committed sweep (a folder with a manifest and a report).
 RUNS = sorted(p.name for p in ROOT.iterdir() if (p / "manifest.json").is_file() and (p / "report").is_dir())
 

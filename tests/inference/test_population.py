@@ -439,7 +439,7 @@ def test_heldout_comparison(world, study):
 
 # ----------------------------------------------------------------------------- the SBC
 def load_sbc_benchmark():
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "population_sbc.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "population_sbc.py"
     if "population_sbc" not in sys.modules:
         spec = importlib.util.spec_from_file_location("population_sbc", path)
         module = importlib.util.module_from_spec(spec)

@@ -6,9 +6,9 @@ import json
 
 import numpy as np
 import pytest
+from cli_helpers import assert_input_error, invoke, ok
 from reference_solver import reference
 from scipy.special import logsumexp
-from test_cli import assert_input_error, invoke, ok
 
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid

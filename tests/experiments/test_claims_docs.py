@@ -6,7 +6,7 @@ from pathlib import Path
 
 from expertise_irl.experiments.report.claims import RULES, VERDICT_NOTES
 
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "experiments.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments.md"
 
 
 def test_every_rule_and_verdict_note_is_in_the_docs_word_for_word():

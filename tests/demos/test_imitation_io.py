@@ -37,7 +37,7 @@ from expertise_irl.errors import InputError
 from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled, parse_map
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 THETA = np.array([0.4, 0.3, 0.1, 0.1, 0.1])
 
 

@@ -11,7 +11,6 @@ inference results) are made once per module.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -20,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import assert_input_error, invoke, ok
+from cli_helpers import assert_input_error, invoke, load, ok, snapshot
 
 import expertise_irl
 from expertise_irl import cli
@@ -60,10 +59,6 @@ def run_cli(*args, cwd: Path) -> subprocess.CompletedProcess:
     return proc
 
 
-def load(path: Path) -> dict:
-    return json.loads(Path(path).read_text(encoding="utf-8"))
-
-
 def csv_rows(path: Path) -> tuple[str, np.ndarray]:
     """Header line and ``[n, 4]`` int rows of a demonstrations CSV."""
     lines = Path(path).read_text(encoding="utf-8").splitlines()
@@ -73,10 +68,6 @@ def csv_rows(path: Path) -> tuple[str, np.ndarray]:
 def age(path: Path) -> None:
     """Give ``path`` an old mtime, so that any later write to it is visible."""
     os.utime(path, ns=(OLD_MTIME_NS, OLD_MTIME_NS))
-
-
-def snapshot(path: Path) -> tuple[bytes, int]:
-    return path.read_bytes(), path.stat().st_mtime_ns
 
 
 def table_cells(stdout: str, label: str, *, exact: bool = False) -> list[str]:

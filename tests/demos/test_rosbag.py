@@ -32,7 +32,7 @@ PLAN = (
     ".......#v.\n"
     "G..<<<<<<G\n"
 )
-EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "expertise_irl" / "userstudy" / "example"
+EXAMPLE = Path(__file__).resolve().parents[2] / "src" / "expertise_irl" / "userstudy" / "example"
 ODOM, POSE, POSE_COV, TF = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
                             "geometry_msgs/msg/PoseWithCovarianceStamped", "tf2_msgs/msg/TFMessage")
 START = 1_700_000_000 * 10**9  # the bags' first header stamp
