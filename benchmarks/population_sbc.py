@@ -19,7 +19,7 @@ One simulated study per ``--studies`` index s, everything drawn from ``default_r
 
 The grid: the bundled map ``crossroads`` (185 cells, K = 5 features), the paper-real Θ (211
 directions), ``--n-betas`` β log-spaced on [0.02, 5] (the SBC holds for any grid, since the
-model is exact on the grid it is given; 20 is tests/test_population.py's grid, and the cost is
+model is exact on the grid it is given; 20 is tests/inference/test_population.py's grid, and the cost is
 mostly the sampler's compilation, read back from JAX's persistent cache after the first
 study), the maxent model.
 

@@ -162,7 +162,7 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 
 
 def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
-    """On the study's fixed set (--no-refine; tests/test_study_refine.py refines it)."""
+    """On the study's fixed set (--no-refine; tests/userstudy/test_study_refine.py refines it)."""
     out = study_dir / "out"
     key_b = None
     from expertise_irl.userstudy.run import map_key

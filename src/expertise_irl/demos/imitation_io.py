@@ -50,7 +50,7 @@ episode with probability 1 − γ (in an absorbing ``end`` state of value 0), wh
 undiscounted soft backup ``γ·V`` and the undiscounted occupancy the discounted one; train that
 chain with ``discount=1`` on the demonstrations' discounted occupancy (:meth:`ArrivalChain.occupancy`,
 which is what ``MCEIRL(discount=γ)`` counts from :meth:`ArrivalChain.trajectories`).
-``tests/test_imitation_io.py`` checks the chain's soft values against
+``tests/demos/test_imitation_io.py`` checks the chain's soft values against
 :func:`expertise_irl.planning.soft_vi.solve`.
 """
 

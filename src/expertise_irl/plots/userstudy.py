@@ -20,7 +20,7 @@ discrete grid, a histogram of the NUTS draws, or the MAP point), on a log axis, 
 marginal bars / histogram of draws, θ̂ and its 90% interval; or, when θ is estimated per
 task (``doc["share"] == "beta"``), one row per task with θ̂ of each feature).
 
-Layout rules (acceptance criteria, checked by ``tests/test_study_figures.py``):
+Layout rules (acceptance criteria, checked by ``tests/userstudy/test_study_figures.py``):
 
 1. No panel (axes) is narrower than a third of the figure width: task panels are a third,
    a half or all of the width (three, two or one per row), the two posterior panels each
