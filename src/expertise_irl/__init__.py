@@ -1,8 +1,9 @@
 """expertise-irl: joint inference of reward (θ) and expertise (β) from demonstrations.
 
 The public names below are imported on first use, so ``import expertise_irl`` (and the
-command line's ``--help``) does not pay for JAX. The modules that solve enable float64
-in JAX when they are imported: soft value iteration at small β needs it.
+command line's ``--help``) does not pay for JAX. Importing a module switches nothing on: the
+functions that compute with JAX switch it to float64 when they are called (soft value iteration
+at small β needs it), through :func:`expertise_irl.numerics.enable_float64`.
 """
 
 from __future__ import annotations

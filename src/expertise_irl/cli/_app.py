@@ -26,6 +26,7 @@ from typer.core import TyperArgument, TyperGroup, TyperOption
 
 from .. import __version__
 from ..errors import ConvergenceError, InputError, os_reason, plural
+from ..numerics import enable_float64
 
 
 class _OneLineErrors(TyperGroup):
@@ -35,6 +36,7 @@ class _OneLineErrors(TyperGroup):
     """
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        enable_float64()  # before JAX is imported, only the environment variable JAX reads
         try:
             with _sigterm_interrupts():
                 rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,

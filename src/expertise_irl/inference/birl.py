@@ -106,6 +106,7 @@ from ..demos.trajectories import Trajectories, validate
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
+from ..numerics import enable_float64
 from .birl_kernel import (
     GRID_RTOL,
     Chain,
@@ -280,6 +281,7 @@ def extended_birl(
     Raises:
         InputError: a bad parameter (the message names it) or demonstrations impossible in ``mdp``.
     """
+    enable_float64()
     rng = _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam, variant, moves,
                       log_prior, burn_in, rng, tol)
     get_prior(prior)

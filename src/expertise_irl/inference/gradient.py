@@ -39,6 +39,7 @@ from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
+from ..numerics import enable_float64
 from .laplace import hessian, laplace_summary
 from .priors import (
     BETA_PRIOR_MEAN,
@@ -166,6 +167,7 @@ def map_estimate(
     ``progress(done, n_starts)`` is called after each start. ``rng`` also draws the Laplace
     Gaussian's samples (θ's intervals), after the starts.
     """
+    enable_float64()
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
     beta_range = get_prior(prior).beta_range if beta_range is None else beta_range

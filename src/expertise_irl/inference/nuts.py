@@ -38,6 +38,7 @@ import numpy as np
 from ..demos.trajectories import Trajectories
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL
+from ..numerics import enable_float64
 from .diagnostics import chain_statistics
 from .gradient import credible_intervals
 from .nuts_kernel import check_run, sample, unconstrained_posterior
@@ -136,6 +137,7 @@ def nuts_posterior(
     0.95 halved the divergences of experts' posteriors on ``corridor`` at 2-4× the time and,
     for one person, a fraction of the effective samples: docs/calibration.md).
     """
+    enable_float64()
     num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)
     f = tasks_log_likelihood(mdp, trajs, tol=tol, model=model)
     first = as_tasks(mdp, trajs)[0][0]

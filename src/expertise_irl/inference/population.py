@@ -57,7 +57,7 @@ from scipy.special import logsumexp
 
 from ..errors import InputError
 from ..hypotheses import HypothesisSet
-from ..planning import kernels as _float64  # noqa: F401  (switches JAX to float64, as everywhere)
+from ..numerics import enable_float64
 
 __all__ = ["HYPERPRIOR_TEXT", "THETA_SHRINK", "Hyperparameters", "Hyperprior", "PopulationData",
            "PopulationFit", "PopulationPosterior", "heldout_comparison", "log_marginals",
@@ -107,6 +107,7 @@ class PopulationData:
 
     @cached_property
     def _arrays(self) -> _Arrays:
+        enable_float64()  # every computation of the model starts from these arrays
         hyp = self.hypotheses
         with np.errstate(divide="ignore", invalid="ignore"):
             masks, mask_index = np.unique(self.allowed, axis=0, return_inverse=True)

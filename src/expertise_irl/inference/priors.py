@@ -40,6 +40,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..numerics import enable_float64
+
 BETA_PRIOR_MEAN = 5.005
 BETA_PRIOR_SD = 1.5
 BETA_RANGE = (0.01, 10.0)  # the paper's β range
@@ -137,6 +139,7 @@ def _log_beta_density(name: str, beta):
 def log_prior_jax(name: str, concentration: float | None = None):
     """``f(theta, beta) -> log p`` up to a constant, JAX-traceable, the density on (θ, β):
     Σ(α − 1) log θ_i + log p(β) (θ is on the simplex; −∞ outside β's range)."""
+    enable_float64()
     import jax.numpy as jnp
 
     lo, hi = get_prior(name).beta_range
@@ -156,6 +159,7 @@ def log_prior_unconstrained(name: str, concentration: float | None = None):
     """``g(z, b) -> log p`` up to a constant, JAX-traceable: the prior's density in MAP's
     coordinates θ = softmax(z), β = e^b (the module docstring): Σ_i (α z_i − e^{z_i}) for θ,
     log p(e^b) + b for β, −∞ outside β's range."""
+    enable_float64()
     import jax.numpy as jnp
 
     lo, hi = (math.log(v) for v in get_prior(name).beta_range)
@@ -173,6 +177,7 @@ def unconstrained_from_density(log_prior):
     """``g(z, b)``: a density ``log_prior(theta, beta)`` on (θ, β) written in (z, b), with
     z's scale s = Σ e^{z_i} ~ Gamma(K, 1) apart from θ: log_prior(θ, β) + Σ log θ_i + b +
     K log s − s (for a Dirichlet(1) it is :func:`log_prior_unconstrained`'s at α = 1)."""
+    enable_float64()
     import jax
     import jax.numpy as jnp
 
@@ -187,6 +192,7 @@ def unconstrained_from_density(log_prior):
 
 def numpyro_priors(name: str, n_features: int, concentration: float | None = None):
     """``(theta_prior, beta_prior)`` NumPyro distributions of the prior called ``name``."""
+    enable_float64()
     import jax.numpy as jnp
     import numpyro.distributions as dist
 

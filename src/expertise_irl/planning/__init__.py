@@ -12,11 +12,12 @@
 - :mod:`.differentiable`: the log-likelihood solved inside JAX with an implicit gradient
   (MAP, NUTS, Algorithm 1).
 
-Float64 is switched on once, in :mod:`.kernels` (``jax_enable_x64``), for the whole process: soft
-value iteration at small β needs it, and every module that computes with JAX (:mod:`.soft_vi`,
-:mod:`.differentiable`, the tuner, and through them the continuous methods) imports the kernels
-first. This package's own names are imported on first use, so :mod:`.jax_cache` and
-:mod:`.tuning`'s cache reads do not load JAX.
+Float64 is switched on by a call, not by an import: :func:`.soft_vi.solve`, :func:`.kernels.prepare`
+(where every solve and likelihood moves its MDP to the device), :class:`.differentiable.LogLikelihood`
+and the tuner call :func:`expertise_irl.numerics.enable_float64` before their first JAX array, so
+soft value iteration at small β gets the precision it needs whoever calls it. This package's own
+names are imported on first use, so :mod:`.jax_cache` and :mod:`.tuning`'s cache reads do not
+load JAX.
 """
 
 from __future__ import annotations

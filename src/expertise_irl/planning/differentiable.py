@@ -31,6 +31,7 @@ import numpy as np
 from ..errors import InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
+from ..numerics import enable_float64
 from . import kernels as kernel
 
 
@@ -121,6 +122,7 @@ class LogLikelihood:
     """
 
     def __init__(self, mdp: TabularMDP, counts: np.ndarray, tol: float, max_iter: int, model: str):
+        enable_float64()
         check_model(model)
         counts = np.asarray(counts, dtype=np.float64)
         if counts.shape != (mdp.n_states, mdp.n_actions):

@@ -40,9 +40,7 @@ import numpy as np
 
 from ..mdp import TabularMDP
 from ..models import backup
-
-# The one place float64 is switched on (see the package docstring).
-jax.config.update("jax_enable_x64", True)
+from ..numerics import enable_float64
 
 #: Hypotheses along the minor (vector) axis of one group where none is chosen for the machine
 #: (:mod:`expertise_irl.planning.tuning` picks it at first use). XLA's CPU code ran about twice as fast
@@ -123,7 +121,9 @@ def sweep_blocks(mdp: TabularMDP) -> np.ndarray:
 
 
 def prepare(mdp: TabularMDP, dtype) -> Prepared:
-    """Move the MDP to the device in the solver's layout."""
+    """Move the MDP to the device in the solver's layout (JAX in float64 first: every solve and
+    likelihood starts here)."""
+    enable_float64()
     block = sweep_blocks(mdp)
     members = [np.flatnonzero(block == b) for b in (0, 1)]
     n_block = max(1, max(len(m) for m in members))

@@ -27,6 +27,7 @@ import numpy as np
 from ..errors import ConvergenceError, InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
+from ..numerics import enable_float64
 from . import kernels as kernel
 from .tuning import lane_width
 
@@ -245,6 +246,7 @@ def solve(
         InputError: bad shapes, non-finite θ, or β <= 0.
         ConvergenceError: a hypothesis did not converge within ``max_iter`` sweeps.
     """
+    enable_float64()
     theta, beta = _as_hypotheses(mdp, theta, beta)
     check_model(model)
     if method is None:

@@ -217,9 +217,11 @@ def _measure(dtype: str) -> LaneChoice:
     import numpy as np
 
     from ..hypotheses import THETA_PRESETS, theta_grid
+    from ..numerics import enable_float64
     from ..worlds.maps import resolve_world
     from . import kernels
 
+    enable_float64()
     candidates = CANDIDATES.get(jax.default_backend(), ())
     if not candidates:
         return LaneChoice(kernels.LANES, "default", {})
