@@ -9,7 +9,17 @@ import pytest
 
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.metrics import cosine_similarity, expertise_distance, policy_regret, regret_from_values
+from expertise_irl.metrics import (
+    cosine_similarity,
+    expertise_distance,
+    greedy_policy,
+    policy_regret,
+    policy_values,
+    regret_from_values,
+    return_regret,
+    return_regret_table,
+    uniform_policy,
+)
 from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled
 
@@ -197,3 +207,71 @@ def test_policy_regret_invariant_to_joint_rescaling(corridor, c):
     when θ*, β* and θ̂ are rescaled together (scale invariance)."""
     r = policy_regret(corridor, THETA_STAR, 0.5, THETA_HAT)
     assert policy_regret(corridor, c * THETA_STAR, c * 0.5, c * THETA_HAT) == pytest.approx(r, abs=SOLVE_ABS)
+
+
+# ------------------------------------------------------------------- return regret
+def test_return_regret_hand_computed_on_the_fork(fork):
+    """θ* = (0.8, 0.2): the best action pays −0.2, the other −0.8, acting at random −0.5."""
+    t = np.array([0.8, 0.2])
+    assert return_regret(fork, t, [0.99, 0.01]) == 0.0  # the same policy, another reward
+    assert return_regret(fork, t, [0.3, 0.7]) == pytest.approx(0.6 / 0.3, abs=1e-12)  # the wrong action
+    assert return_regret(fork, t, [0.5, 0.5]) == pytest.approx(1.0, abs=1e-12)  # a tie: acting at random
+    assert return_regret(fork, t, [0.0, 0.0]) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_return_regret_ranks_policies_where_eq17_does_not(fork):
+    """(0.2, 0.8) mirrors θ*: the same soft values (Eq. 17 = 0) but the wrong action; (0.99, 0.01)
+    takes θ*'s action but has other soft values (Eq. 17 > 0). Only the return regret ranks them
+    by what acting on them earns."""
+    t, beta = np.array([0.8, 0.2]), 0.3
+    right, mirror = np.array([0.99, 0.01]), np.array([0.2, 0.8])
+    assert policy_regret(fork, t, beta, mirror) == pytest.approx(0.0, abs=SOLVE_ABS)
+    assert policy_regret(fork, t, beta, right) > 0.1
+    assert return_regret(fork, t, right) == 0.0 < return_regret(fork, t, mirror)
+
+
+def test_return_regret_is_zero_for_the_truth_and_free_of_scale():
+    mdp = load_bundled("crossroads").to_mdp()
+    t = np.array([0.5, 0.3, 0.1, 0.05, 0.05])
+    other = np.array([0.2, 0.2, 0.2, 0.2, 0.2])
+    assert return_regret(mdp, t, t) == 0.0
+    r = return_regret(mdp, t, other)
+    assert 0.0 < r < 1.0
+    assert return_regret(mdp, 3 * t, 7 * other) == pytest.approx(r, rel=1e-9)
+    table = return_regret_table(mdp, t, np.stack([t, other, np.zeros(5)]))
+    np.testing.assert_allclose(table, [0.0, r, 1.0], atol=1e-9)
+
+
+def test_policy_values_solve_the_policy_bellman_equation():
+    """The exact values of a stochastic policy satisfy V = r_π + γ P_π V at every state (and are
+    0 at terminals); an iterative evaluation agrees."""
+    mdp = load_bundled("crossroads").to_mdp()
+    rng = np.random.default_rng(3)
+    theta = rng.dirichlet(np.ones(mdp.n_features))
+    pi = np.where(mdp.available, rng.random(mdp.available.shape), 0.0)
+    pi /= np.maximum(pi.sum(axis=1, keepdims=True), 1e-300)
+    v = policy_values(mdp, theta, pi)
+    r = np.where(mdp.available, mdp.reward(theta), 0.0)
+    nxt = np.where(mdp.available, mdp.next_state, 0)
+    backup = (pi * (r + mdp.gamma * v[nxt])).sum(axis=1)
+    np.testing.assert_allclose(v[~mdp.terminal], backup[~mdp.terminal], atol=1e-10)
+    assert np.all(v[mdp.terminal] == 0.0)
+    it = np.zeros(mdp.n_states)
+    for _ in range(2000):
+        it = (pi * (r + mdp.gamma * it[nxt])).sum(axis=1)
+    np.testing.assert_allclose(v, it, atol=1e-9)
+
+
+def test_greedy_and_uniform_policies_are_distributions_over_available_actions():
+    mdp = load_bundled("crossroads").to_mdp()
+    for pi in (greedy_policy(mdp, [0.2, 0.2, 0.2, 0.2, 0.2]), uniform_policy(mdp)):
+        live = ~mdp.terminal
+        np.testing.assert_allclose(pi[live].sum(axis=1), 1.0)
+        assert np.all(pi[~mdp.available] == 0.0)
+
+
+def test_return_regret_refuses_bad_input(fork):
+    with pytest.raises(InputError, match="2 components"):
+        return_regret(fork, [1.0, 0.0], [1.0, 0.0, 0.0])
+    with pytest.raises(InputError, match="every policy earns the same"):
+        return_regret(fork, [0.5, 0.5], [1.0, 0.0])

@@ -11,6 +11,7 @@ from .capped import capped_section, capped_shares, last_rows
 from .conditions_claims import PERSON, V2, claims, table1, table2
 from .parts import Figure, Report
 from .regret_scale import random_theta_section
+from .regrets import regrets_section
 from .stats import METRIC_AXES, METRIC_RANGE, METRICS
 from .sweep import protocol_note, require_columns
 from .tables import means_table
@@ -199,6 +200,7 @@ def build(sweep) -> Report:
     scale = random_theta_section(rows, n)
     if scale is not None:
         report.sections.append(scale)
+    report.sections.append(regrets_section(rows[rows["truth"] == "in_set"], PERSON, "condition"))
     return report
 
 

@@ -9,6 +9,7 @@ import numpy as np
 from . import figures as F
 from .capped import capped_section, capped_shares, last_rows
 from .parts import Figure, Report, Table
+from .regrets import regrets_section
 from .stats import (
     HIGHER_IS_BETTER,
     METRIC_AXES,
@@ -286,6 +287,7 @@ def build(sweep) -> Report:
     last = last_rows(rows[rows["set"] == "full"], PERSON)
     report.sections.append(capped_section(last, capped_effect(at, last), by=["source", "truth"],
                                           max_steps=source_caps(sweep.config)))
+    report.sections.append(regrets_section(at, PERSON, "set"))
     return report
 
 

@@ -10,6 +10,7 @@ from .capped import capped_section, last_rows
 from .identifiability import gap_section
 from .optimisation_claims import JUDGED, KEY, PERSON, RESCALED, claims, table4
 from .parts import Figure, Report, Table
+from .regrets import regrets_section
 from .stats import METRIC_AXES, METRIC_RANGE, METRICS, fmt
 from .sweep import protocol_note, require_columns, workers_text
 from .tables import means_table, pearson_cell
@@ -255,4 +256,5 @@ def build(sweep) -> Report:
     gap = gap_section(rows)
     if gap is not None:
         report.sections.append(gap)
+    report.sections.append(regrets_section(rows, PERSON, "method"))
     return report

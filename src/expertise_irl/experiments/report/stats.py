@@ -12,17 +12,21 @@ METRICS = {
     "expertise_distance": "Expertise distance",
     "policy_regret": "Regret",
 }
+#: Metrics shown beside :data:`METRICS` where the rows have them (rows written before they existed do not).
+EXTRA_METRICS = {"return_regret": "Return regret"}
 #: Axis labels of the metrics.
 METRIC_AXES = {
     "cosine_similarity": "cosine similarity (θ*, θ̂)",
     "expertise_distance": "|β* − β̂|",
     "policy_regret": "policy regret (Eq. 17)",
+    "return_regret": "return regret (θ̂'s optimal policy under θ*)",
 }
 #: The range each metric can take (θ ≥ 0, so the cosine is in [0, 1]); CIs are clipped to it.
 METRIC_RANGE = {"cosine_similarity": (0.0, 1.0), "expertise_distance": (0.0, np.inf),
-                "policy_regret": (0.0, np.inf)}
+                "policy_regret": (0.0, np.inf), "return_regret": (0.0, np.inf)}
 #: True where a larger value of the metric is better.
-HIGHER_IS_BETTER = {"cosine_similarity": True, "expertise_distance": False, "policy_regret": False}
+HIGHER_IS_BETTER = {"cosine_similarity": True, "expertise_distance": False, "policy_regret": False,
+                    "return_regret": False}
 
 
 class MeanCI(NamedTuple):

@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .parts import Table
-from .stats import METRIC_RANGE, METRICS, clip_ci, fmt, mean_ci
+from .stats import EXTRA_METRICS, METRIC_RANGE, METRICS, clip_ci, fmt, mean_ci
 
 ALPHA = 0.05
 CONSTANT = "n/a (constant)"
@@ -93,10 +93,13 @@ def factor_rows(frame, factors: dict[str, str], missing: dict[str, str] | None =
 
 
 def means_table(name: str, title: str, caption: str, frame, by: list[str],
-                metrics: dict[str, str] = METRICS) -> Table:
-    """Mean [95% CI] and n of each metric per group of ``by``."""
+                metrics: dict[str, str] | None = None) -> Table:
+    """Mean [95% CI] and n of each metric per group of ``by`` (default: :data:`.stats.METRICS`, and
+    :data:`.stats.EXTRA_METRICS` where ``frame`` has them)."""
     import pandas as pd
 
+    if metrics is None:
+        metrics = {**METRICS, **{c: label for c, label in EXTRA_METRICS.items() if c in frame.columns}}
     display, data = [], []
     for key, g in frame.groupby(by, sort=False, observed=True):  # in the order the frame holds them
         key = key if isinstance(key, tuple) else (key,)

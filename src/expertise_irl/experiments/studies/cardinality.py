@@ -35,7 +35,7 @@ SCALES = {
 STUDY = dataclasses.replace(
     CONDITIONS_STUDY,
     name="cardinality",
-    version=4,  # 4: goal_reward_mode (the protocol) and random_theta_regret
+    version=5,  # 5: return_regret; 4: goal_reward_mode (the protocol) and random_theta_regret
     description="Sec. VI-E: the discrete set with k = 20..100 preference vectors, in- and out-of-set truths",
     scales=SCALES,
     report="expertise_irl.experiments.report.cardinality:build",

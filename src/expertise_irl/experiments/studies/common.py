@@ -68,6 +68,9 @@ METRIC_COLUMNS = float_columns({
     "expertise_distance": "|β* − β̂|",
     "cosine_similarity": "cosine of θ* and θ̂",
     "policy_regret": "Eq. 17 with θ̂ evaluated at the true β*",
+    "return_regret": "what acting on θ̂ costs under θ*: the return of θ̂'s optimal policy short of the best "
+                     "policy's, as a share of the uniform random policy's shortfall (0 best, 1 random; "
+                     "`expertise_irl.metrics.return_regret`)",
 })
 #: Table I's factors: how close the truth is to the person's Ψ_k = Θ_k × B (:func:`composition_values`).
 SET_COMPOSITION = float_columns({

@@ -401,15 +401,17 @@ def estimate_metrics(mdp, model: str, theta, beta: float, value, theta_hat,
                      beta_hat) -> dict[str, np.ndarray]:
     """Sec. V-E's metrics of one person's estimates ``theta_hat [N, K]``, ``beta_hat [N]``
     against their truth (θ*, β*, soft values ``value [S]``). The regret solves each distinct
-    θ̂ once, at β* (Sec. VI-C), in one padded batch."""
-    from ...metrics import cosine_similarity, expertise_distance, regret_from_values
+    θ̂ once, at β* (Sec. VI-C), in one padded batch; the return regret (what θ̂'s optimal policy
+    earns under θ*) once per distinct θ̂ too."""
+    from ...metrics import cosine_similarity, expertise_distance, regret_from_values, return_regret_table
 
     uniq, inv = np.unique(theta_hat, axis=0, return_inverse=True)
     v_hat, _ = solve_padded(mdp, uniq, np.full(len(uniq), beta), model)
     return {"expertise_distance": np.array([expertise_distance(beta, x) for x in beta_hat]),
             "cosine_similarity": np.array([cosine_similarity(theta, t) for t in theta_hat]),
             "policy_regret": np.array([regret_from_values(value, v_hat[j], mdp.terminal)
-                                       for j in inv.ravel()])}
+                                       for j in inv.ravel()]),
+            "return_regret": return_regret_table(mdp, theta, uniq)[inv.ravel()]}
 
 
 # ----------------------------------------------------------------------------- schema
@@ -450,7 +452,7 @@ _ESTIMATES = [
 
 STUDY = Study(
     name="conditions",
-    version=4,  # 4: goal_reward_mode (the protocol) and random_theta_regret
+    version=5,  # 5: return_regret; 4: goal_reward_mode (the protocol) and random_theta_regret
     description="Sec. VI-A: Full set vs Fixed θ vs Fixed β, in- and out-of-set truths, metrics per episode",
     config_type=ConditionsConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=(*_ID, *_CONTEXT, *_ESTIMATES),

@@ -265,7 +265,8 @@ COLUMNS = (
 
 STUDY = Study(
     name="fullset",
-    version=4,  # 4: over-relaxed solves, no float32 phase (values move within the tolerance)
+    # 5: return_regret; 4: over-relaxed solves, no float32 phase (values move within the tolerance)
+    version=5,
     description="beyond the paper: conditions' and optimisation's people scored with all 18,186 paper-sim "
                 "hypotheses vs their Ψ_k",
     config_type=FullsetConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,

@@ -391,7 +391,8 @@ COLUMNS = (
 
 STUDY = Study(
     name="optimisation",
-    version=3,  # 3: goal_reward_mode (the protocol) and the log-likelihoods at the truth and estimate
+    # 4: return_regret; 3: goal_reward_mode (the protocol) and the log-likelihoods at the truth and estimate
+    version=4,
     description="Sec. VII: Algorithm 1 (as printed), ours (simplex, MAP, NUTS) vs the discrete set Ψ_20",
     config_type=OptimisationConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
     columns=COLUMNS,
