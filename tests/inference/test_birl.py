@@ -375,3 +375,47 @@ def test_a_chain_frozen_everywhere_reports_no_posterior(tiny):
     stuck = [w for w in diag["warnings"] if "did not move" in w]
     assert len(stuck) == 1 and stuck[0].startswith(f"the chain did not move in β, θ[{names[0]}], ")
     assert not any(w.startswith("bulk ESS of ") for w in diag["warnings"])  # said once, by the stuck warning
+
+
+@pytest.mark.parametrize("prior", [None, _small_beta])
+def test_a_log_spaced_beta_lattice_matches_its_exact_posterior(tiny, prior):
+    """``beta_ratio``: β ∈ {0.2, 0.4, 0.8}; each lattice point stands for its cell's prior mass,
+    density × β (a cell of a log-spaced lattice is β·ln 2 wide), so the exact target weighs the
+    prior density by β. With the default log-uniform prior that is flat over the lattice. A
+    sampler that took the density alone would be off by a factor of 4 between the ends (|z| ≫ 5)."""
+    mdp, trajs = tiny
+    res = extended_birl(mdp, trajs, variant="simplex", log_prior=prior, n_iter=60_000, burn_in=0.02,
+                        rng=np.random.default_rng(12), delta=0.25, beta_ratio=2.0, beta_range=(0.2, 0.8))
+    assert res.beta_ratio == 2.0 and set(np.round(res.beta, 9)) == {0.2, 0.4, 0.8}
+    density = prior or _log_uniform
+    thetas, betas, logp = [], [], []
+    for m in itertools.product(range(5), repeat=3):
+        if sum(m) != 4:
+            continue
+        theta = 0.25 * np.array(m)
+        for beta in (0.2, 0.4, 0.8):
+            ref = soft_value_iteration(mdp, theta, beta)
+            thetas.append(theta)
+            betas.append(beta)
+            ll = ref.log_policy[trajs.state, trajs.action].sum()
+            logp.append(ll + density(theta, beta) + math.log(beta))
+    p = np.exp(np.array(logp) - max(logp))
+    p /= p.sum()
+    thetas, betas = np.array(thetas), np.array(betas)
+    checks = {f"E[theta_{k}]": (res.kept_theta[:, k], thetas[:, k]) for k in range(3)}
+    checks["E[beta]"] = (res.kept_beta, betas)
+    for b in (0.2, 0.4, 0.8):
+        checks[f"P(beta={b})"] = (np.isclose(res.kept_beta, b), np.isclose(betas, b))
+    z = {}
+    for name, (chain, values) in checks.items():
+        chain, values = chain.astype(float), values.astype(float)
+        mean = p @ values
+        z[name] = _z(chain, mean, p @ values**2 - mean**2)
+    assert max(abs(v) for v in z.values()) < 5, z
+
+
+def test_a_log_spaced_beta_lattice_refuses_a_bad_ratio(tiny):
+    mdp, trajs = tiny
+    for ratio, match in ((1.0, "beta_ratio must be"), (10.0, "leaves a single")):
+        with pytest.raises(InputError, match=match):
+            extended_birl(mdp, trajs, n_iter=5, rng=0, beta_ratio=ratio, beta_range=(0.2, 0.8))

@@ -17,7 +17,11 @@ State space (a lattice).
     0.11, ..., 9.91). Note the paper's β step is coarse at small β: 0.01 → 0.11 is an
     11-fold change of θ/β. Algorithm 1 names the β step "λ" (neighbours of β̂ in
     [0, βmax]/λ) and uses λ for the ‖θ‖₁ bound in Eq. 14; here the two are separate
-    parameters, ``beta_step`` and ``lam``.
+    parameters, ``beta_step`` and ``lam``. With ``beta_ratio`` (not in the paper) the β lattice is
+    log-spaced instead, β = βmin·beta_ratio^j, and each point carries its cell's prior mass
+    (the prior's density × β, a cell being β·ln(beta_ratio) wide): the target stays the
+    continuum posterior restricted to the lattice, and a step changes θ/β by the same factor
+    at every β.
 
     ``variant="simplex"``: θ = δ·m with Σm = 1/δ (must be an integer), i.e. ‖θ‖₁ = 1,
     which fixes the scale (only θ/β enters the likelihood); ``theta_max`` and ``lam`` are unused.
@@ -153,7 +157,8 @@ class BIRLResult:
         best_theta, best_beta, best_log_posterior: highest log posterior evaluated.
         n_solves: soft value iterations run; n_sweeps: their total sweeps.
         n_cache_hits: proposals whose log-likelihood was already known.
-        variant, moves, delta, beta_step: the settings.
+        variant, moves, delta, beta_step, beta_ratio: the settings (``beta_ratio`` None: additive
+            β steps).
     """
 
     theta: np.ndarray
@@ -177,6 +182,7 @@ class BIRLResult:
     moves: str
     delta: float
     beta_step: float
+    beta_ratio: float | None = None
 
     @property
     def kept_theta(self) -> np.ndarray:
@@ -195,7 +201,7 @@ class BIRLResult:
 
 # ----------------------------------------------------------------------------- checks
 def _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam, variant, moves,
-                log_prior, burn_in, rng, tol) -> np.random.Generator:
+                log_prior, burn_in, rng, tol, beta_ratio=None) -> np.random.Generator:
     if not isinstance(mdp, TabularMDP):
         raise InputError(f"mdp must be a TabularMDP, got {type(mdp).__name__}")
     if not isinstance(trajs, Trajectories):
@@ -214,7 +220,13 @@ def _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam
         raise InputError(f"beta_range must be a pair (low, high), got {beta_range!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         raise InputError(f"beta_range must satisfy 0 < low < high (finite), got {beta_range!r}")
-    if lo + beta_step > hi * (1 + GRID_RTOL):
+    if beta_ratio is not None:
+        if isinstance(beta_ratio, bool) or not isinstance(beta_ratio, int | float | np.number) or not (
+                math.isfinite(beta_ratio) and beta_ratio > 1):
+            raise InputError(f"beta_ratio must be a finite number > 1, got {beta_ratio!r}")
+        if lo * beta_ratio > hi * (1 + GRID_RTOL):
+            raise InputError(f"beta_ratio = {beta_ratio:g} leaves a single β in beta_range {beta_range!r}")
+    elif lo + beta_step > hi * (1 + GRID_RTOL):
         raise InputError(f"beta_step = {beta_step:g} leaves a single β in beta_range {beta_range!r}")
     if variant not in VARIANTS:
         raise InputError(f"variant must be one of {', '.join(VARIANTS)}, got {variant!r}")
@@ -253,6 +265,7 @@ def extended_birl(
     progress: Callable[[int, int], None] | None = None,
     prior: str = DEFAULT_PRIOR,
     model: str = DEFAULT_MODEL,
+    beta_ratio: float | None = None,
 ) -> BIRLResult:
     """Sample P(θ, β | Ξ) with Algorithm 1 (see the module docstring for every choice made).
 
@@ -277,13 +290,16 @@ def extended_birl(
         warm_start: warm-start each solve from the current point's value function.
         cache: remember each lattice point's log-likelihood.
         progress: called as ``progress(done, n_iter)`` about a hundred times during the walk.
+        beta_ratio: multiplicative β steps (β_{j+1} = β_j·beta_ratio from βmin; > 1) instead of the
+            additive ``beta_step``: a lattice even in log β, whose points carry the prior mass of
+            their cells (density × β). Not the paper's; see the module docstring.
 
     Raises:
         InputError: a bad parameter (the message names it) or demonstrations impossible in ``mdp``.
     """
     enable_float64()
     rng = _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam, variant, moves,
-                      log_prior, burn_in, rng, tol)
+                      log_prior, burn_in, rng, tol, beta_ratio)
     get_prior(prior)
     check_model(model)
     if log_prior is None:
@@ -293,7 +309,7 @@ def extended_birl(
             return log_prior_numpy(_name, theta, beta, _range)
     if moves is None:
         moves = "both" if variant == "box" else "either"
-    lattice = make_lattice(mdp.n_features, variant, delta, beta_step, theta_max, beta_range, lam)
+    lattice = make_lattice(mdp.n_features, variant, delta, beta_step, theta_max, beta_range, lam, beta_ratio)
     target = LatticePosterior(mdp, trajs, lattice, log_prior, tol=tol, model=model, warm_start=warm_start,
                               cache=cache)
     start = initial_state(rng, target)
@@ -317,4 +333,5 @@ def _summarise(chain: Chain, lattice: Lattice, target: LatticePosterior, moves: 
         best_theta=lattice.theta(best_m), best_beta=lattice.beta(best_j), best_log_posterior=float(best_lp),
         n_solves=target.n_solves, n_sweeps=target.n_sweeps, n_cache_hits=target.n_cache_hits,
         variant=lattice.variant, moves=moves, delta=lattice.delta, beta_step=lattice.beta_step,
+        beta_ratio=lattice.beta_ratio or None,
     )

@@ -26,7 +26,8 @@ GRID_RTOL = 1e-9
 
 # ----------------------------------------------------------------------------- lattice
 class Lattice(NamedTuple):
-    """The state space: θ = δ·m with integer m ∈ {0..M}^K, β = βmin + j·beta_step, j < n_beta.
+    """The state space: θ = δ·m with integer m ∈ {0..M}^K, β = βmin + j·beta_step, j < n_beta
+    (or, with ``beta_ratio`` > 0, β = βmin·beta_ratio^j: a log-spaced β).
 
     ``variant="box"``: Σm ≤ L and m ≠ 0; ``"simplex"``: Σm = L (= 1/δ).
     """
@@ -39,12 +40,20 @@ class Lattice(NamedTuple):
     delta: float
     beta_min: float
     beta_step: float
+    beta_ratio: float = 0.0  # > 1: multiplicative β steps; 0: additive (beta_step)
 
     def theta(self, m: np.ndarray) -> np.ndarray:
         return m * self.delta
 
     def beta(self, j):
+        if self.beta_ratio:
+            return self.beta_min * self.beta_ratio ** j
         return self.beta_min + j * self.beta_step
+
+    def log_beta_cell(self, j) -> float:
+        """log of the width of β's lattice cell, up to a constant: each lattice point stands for
+        the prior mass of its cell, density × width, and a log-spaced cell's width grows with β."""
+        return math.log(self.beta(j)) if self.beta_ratio else 0.0
 
     def contains(self, m: np.ndarray, j: int) -> bool:
         if not 0 <= j < self.n_beta or m.min() < 0:
@@ -64,11 +73,16 @@ def _grid_count(span: float, step: float, message: str) -> int:
 
 
 def make_lattice(K: int, variant: str, delta: float, beta_step: float, theta_max: float,
-                 beta_range: tuple[float, float], lam: float) -> Lattice:
-    """The lattice of ``variant``; :class:`InputError` if δ does not divide the box or simplex."""
+                 beta_range: tuple[float, float], lam: float, beta_ratio: float | None = None) -> Lattice:
+    """The lattice of ``variant``; :class:`InputError` if δ does not divide the box or simplex.
+    ``beta_ratio``: β steps multiply by it (log-spaced, from βmin up to βmax) instead of adding
+    ``beta_step``."""
     delta, beta_step = float(delta), float(beta_step)
     b_lo, b_hi = (float(b) for b in beta_range)
-    n_beta = math.floor((b_hi - b_lo) / beta_step * (1 + GRID_RTOL)) + 1
+    if beta_ratio:
+        n_beta = math.floor(math.log(b_hi / b_lo) / math.log(beta_ratio) * (1 + GRID_RTOL)) + 1
+    else:
+        n_beta = math.floor((b_hi - b_lo) / beta_step * (1 + GRID_RTOL)) + 1
     if variant == "simplex":
         L = _grid_count(1.0, delta, f"delta must divide 1 in the simplex variant, got {delta:g}")
         M = L
@@ -78,7 +92,7 @@ def make_lattice(K: int, variant: str, delta: float, beta_step: float, theta_max
         L = min(K * M, math.floor(lam / delta * (1 + GRID_RTOL)))
         if L < 1:
             raise InputError(f"lam = {lam:g} must be >= delta = {delta:g} (else only θ = 0 fits)")
-    return Lattice(variant, K, M, L, n_beta, delta, b_lo, beta_step)
+    return Lattice(variant, K, M, L, n_beta, delta, b_lo, beta_step, float(beta_ratio or 0.0))
 
 
 def _count_table(K: int, M: int, L: int, exact: bool) -> list[list[int]]:
@@ -133,7 +147,7 @@ class LatticePosterior:
         lp = float(self.prior(theta, beta))
         if math.isnan(lp) or lp == math.inf:
             raise InputError(f"log_prior returned {lp} at theta={theta.tolist()}, beta={beta:g}")
-        return lp
+        return lp + self.lattice.log_beta_cell(j)
 
     def log_likelihood(self, m: np.ndarray, j: int, warm: tuple[np.ndarray, float] | None
                        ) -> tuple[float, np.ndarray | None]:
