@@ -15,16 +15,15 @@ import textwrap
 
 import pytest
 
-#: Imports every module that computes with JAX, then checks that none switched float64 on.
+#: Imports every module of the package, then checks that none switched float64 on.
 PRELUDE = """
 import importlib, pkgutil
 import jax, jax.numpy as jnp
 import numpy as np
 import expertise_irl
 for m in pkgutil.walk_packages(expertise_irl.__path__, "expertise_irl."):
-    if m.name.split(".")[1] in ("planning", "inference", "models", "numerics"):
-        importlib.import_module(m.name)
-assert not jax.config.jax_enable_x64, "an import switched float64 on"
+    importlib.import_module(m.name)
+    assert not jax.config.jax_enable_x64, f"importing {m.name} switched float64 on"
 from collections import deque
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.worlds.zones import load_bundled

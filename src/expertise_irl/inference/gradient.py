@@ -56,8 +56,11 @@ from .task_likelihood import as_tasks, tasks_log_likelihood
 __all__ = ["BETA_PRIOR_MEAN", "BETA_PRIOR_SD", "MAPResult", "credible_intervals", "map_estimate",
            "paper_log_prior"]
 
-#: Sec. VII-A prior: flat on the simplex for θ, Normal(5.005, 1.5) on [0.01, 10] for β.
-paper_log_prior = log_prior_jax("paper")
+def paper_log_prior(theta, beta):
+    """Sec. VII-A prior, JAX-traceable: flat on the simplex for θ, Normal(5.005, 1.5) on [0.01, 10]
+    for β (:func:`.priors.log_prior_jax` ``("paper")``, built when called, so importing this module
+    does not switch JAX to float64)."""
+    return log_prior_jax("paper")(theta, beta)
 
 
 @dataclass(frozen=True)
