@@ -22,7 +22,8 @@ del version, PackageNotFoundError
 _EXPORTS = {
     "Trajectories": ".demos.trajectories", "read_demos_csv": ".demos.csv_io",
     "simulate": ".demos.simulation", "write_demos_csv": ".demos.csv_io",
-    "ConvergenceError": ".errors", "InputError": ".errors",
+    "ArgumentError": ".errors", "ConvergenceError": ".errors", "ExpertiseIRLError": ".errors",
+    "InputError": ".errors",
     "BETA_PRESETS": ".hypotheses", "THETA_PRESETS": ".hypotheses", "HypothesisSet": ".hypotheses",
     "expertise_group": ".hypotheses", "theta_grid": ".hypotheses",
     "DiscreteBelief": ".inference.belief",
@@ -42,9 +43,11 @@ __all__ = [
     "BETA_PRESETS",
     "MODELS",
     "THETA_PRESETS",
+    "ArgumentError",
     "BIRLResult",
     "ConvergenceError",
     "DiscreteBelief",
+    "ExpertiseIRLError",
     "HypothesisSet",
     "InputError",
     "MAPResult",
@@ -93,7 +96,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .demos.csv_io import read_demos_csv, write_demos_csv
     from .demos.simulation import simulate
     from .demos.trajectories import Trajectories
-    from .errors import ConvergenceError, InputError
+    from .errors import ArgumentError, ConvergenceError, ExpertiseIRLError, InputError
     from .hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, expertise_group, theta_grid
     from .inference.active import next_start
     from .inference.belief import DiscreteBelief

@@ -1,9 +1,17 @@
-"""Exceptions raised on bad user input.
+"""The package's exceptions, under one base, and the helpers of their messages.
 
-Every problem with something the user gave us (a map, a demonstration file, a
-parameter) is raised as :class:`InputError` with a one-line message that names
-the file and the line or step at fault. The command-line interface turns these
-into a message on stderr and exit code 2, with no traceback.
+Every exception the package raises on purpose derives from :class:`ExpertiseIRLError`, so
+``except ExpertiseIRLError`` catches them all:
+
+- :class:`InputError` (a :class:`ValueError`): something the user gave (a map, a demonstration
+  file, a parameter's value) is invalid; the one-line message names the file and the line or
+  step at fault. The command line shows it on stderr with exit code 2 and no traceback.
+- :class:`ConvergenceError` (a :class:`RuntimeError`): soft value iteration did not reach its
+  tolerance; the command line shows it with exit code 1.
+- :class:`ArgumentError` (a :class:`ValueError`): code called a function of the package with an
+  array of the wrong shape (a table, counts, start values the package builds itself). It is a
+  programming error, not the user's: the command line lets it through as a bug, with its
+  traceback.
 """
 
 from __future__ import annotations
@@ -11,12 +19,21 @@ from __future__ import annotations
 from pathlib import Path
 
 
-class InputError(ValueError):
+class ExpertiseIRLError(Exception):
+    """The base of every exception the package raises on purpose."""
+
+
+class InputError(ExpertiseIRLError, ValueError):
     """A user-supplied input is invalid; the message says where and why."""
 
 
-class ConvergenceError(RuntimeError):
+class ConvergenceError(ExpertiseIRLError, RuntimeError):
     """Soft value iteration did not reach its tolerance within ``max_iter`` backups."""
+
+
+class ArgumentError(ExpertiseIRLError, ValueError):
+    """A function of the package was called with an array of the wrong shape: a programming
+    error (the caller built it wrong), not the user's data."""
 
 
 def where(source: str | Path | None, line: int | None = None, col: int | None = None) -> str:

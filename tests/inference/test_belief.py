@@ -11,7 +11,7 @@ from reference_solver import soft_value_iteration
 
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.demos.trajectories import Trajectories
-from expertise_irl.errors import InputError
+from expertise_irl.errors import ArgumentError, InputError
 from expertise_irl.hypotheses import (
     BETA_PRESETS,
     EXPERTISE_GROUPS,
@@ -139,9 +139,9 @@ def test_from_mdp_rejects_feature_count_mismatch(corridor):
 
 
 def test_from_log_policy_rejects_bad_shape(hyp):
-    with pytest.raises(InputError, match="shape"):
+    with pytest.raises(ArgumentError, match="shape"):
         DiscreteBelief.from_log_policy(hyp, np.zeros((len(hyp) + 1, 4, 4)))
-    with pytest.raises(InputError, match="shape"):
+    with pytest.raises(ArgumentError, match="shape"):
         DiscreteBelief.from_log_policy(hyp, np.zeros((len(hyp), 4)))
 
 

@@ -12,7 +12,7 @@ from scipy.special import expit, logsumexp
 from scipy.stats import spearmanr
 
 from expertise_irl.demos.simulation import simulate
-from expertise_irl.errors import InputError
+from expertise_irl.errors import ArgumentError, InputError
 from expertise_irl.hypotheses import HypothesisSet
 from expertise_irl.inference.changing import (
     EPSILONS,
@@ -232,7 +232,6 @@ def test_one_episode():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"ll": np.zeros((3, 5))}, r"shape \[episodes, H=6\]"),
     ({"ll": np.zeros((0, 6))}, "no episodes"),
     ({"ll": np.full((2, 6), np.nan)}, "no NaN"),
     ({"epsilons": (0.0, 1.0)}, r"in \[0, 1\), got 1"),
@@ -240,7 +239,6 @@ def test_one_episode():
     ({"epsilons": (0.1, 0.2)}, "must include 0"),
     ({"epsilons": ()}, "empty"),
     ({"trend": "up"}, "trend must be one of none, falling, rising, got 'up'"),
-    ({"log_prior_theta": np.zeros(3)}, r"log_prior_theta must have shape \[n_theta=2\]"),
     ({"ll": np.full((2, 6), -np.inf)}, "no hypothesis and no sequence of β"),
 ])
 def test_input_errors(kwargs, match):
@@ -249,6 +247,14 @@ def test_input_errors(kwargs, match):
     with pytest.raises(InputError, match=match) as err:
         changing_posterior(ll, hyp, **kwargs)
     assert "\n" not in str(err.value)
+
+
+def test_arrays_of_the_wrong_shape_are_programming_errors():
+    hyp = HypothesisSet(np.array([[1.0, 0.0], [0.0, 1.0]]), [0.1, 1.0, 10.0])
+    with pytest.raises(ArgumentError, match=r"log_prior_theta must have shape \[n_theta=2\]"):
+        changing_posterior(np.zeros((2, 6)), hyp, log_prior_theta=np.zeros(3))
+    with pytest.raises(ArgumentError, match=r"episode_ll must have shape \[episodes, H=6\]"):
+        changing_posterior(np.zeros((2, 5)), hyp)
 
 
 def test_labels_must_match_episodes(tiny):

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from expertise_irl.errors import InputError
 from expertise_irl.inference.sbc import (
     central_intervals,
     coverage,
@@ -131,9 +132,9 @@ def test_a_stuck_sampler_gets_uniform_ranks_not_all_zero():
 def test_ranks_are_reproducible_and_reject_bad_input():
     t, d = np.zeros(50), np.random.default_rng(0).integers(-1, 2, (50, 7)).astype(float)
     assert np.array_equal(ranks(t, d, rng=3), ranks(t, d, rng=3))
-    with pytest.raises(ValueError, match="finite"):
+    with pytest.raises(InputError, match="finite"):
         ranks([0.0], [[np.nan, 1.0]])
-    with pytest.raises(ValueError, match=r"\[n, L\]"):
+    with pytest.raises(InputError, match=r"\[n, L\]"):
         ranks([0.0, 1.0], [[1.0, 2.0]])
 
 
@@ -152,9 +153,9 @@ def test_rank_histogram_bins_and_expected_counts():
 def test_uniformity_test_of_a_perfectly_flat_histogram_and_bad_input():
     test = uniformity_test(np.repeat(np.arange(10), 8), 9, 5)
     assert test.statistic == 0.0 and test.p_value == pytest.approx(1.0)
-    with pytest.raises(ValueError, match="integers"):
+    with pytest.raises(InputError, match="integers"):
         rank_histogram(np.array([0, 10]), 9, 5)
-    with pytest.raises(ValueError, match="bins"):
+    with pytest.raises(InputError, match="bins"):
         rank_histogram(np.array([0, 1]), 9, 11)
 
 
@@ -165,7 +166,7 @@ def test_thin_keeps_evenly_spaced_draws_across_chains():
     assert kept.shape == (3, 2)
     assert kept[:, 0].tolist() == [0, 8, 18]  # concatenated draws 0, 4, 9 (quantity 0)
     assert thin(draws, 10).shape == (10, 2)
-    with pytest.raises(ValueError, match="n_keep"):
+    with pytest.raises(InputError, match="n_keep"):
         thin(draws, 11)
     assert thinned_enough(120.0, 99) and not thinned_enough(80.0, 99) and not thinned_enough(None, 99)
 
@@ -190,5 +191,5 @@ def test_coverage_by_bins_uses_half_open_bins_with_a_closed_last_one():
     rows = coverage_by_bins(truths, low, high, beta, [1e-3, 0.05, 1.0, 100.0])
     assert [(lo, hi) for lo, hi, _ in rows] == [(1e-3, 0.05), (0.05, 1.0), (1.0, 100.0)]
     assert [(c.covered, c.n) for _, _, c in rows] == [(1, 1), (1, 2), (1, 1)]
-    with pytest.raises(ValueError, match="increasing"):
+    with pytest.raises(InputError, match="increasing"):
         coverage_by_bins(truths, low, high, beta, [1.0, 0.5])

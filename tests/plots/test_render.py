@@ -173,7 +173,7 @@ def test_trajectory_colours():
     assert {ln.get_color() for ln in lines_by_gid(ax, "path-")} == {"red"}
     ax = render.draw_trajectories(new_ax(), SMALL, paths)
     assert len({ln.get_color() for ln in lines_by_gid(ax, "path-")}) == 3
-    with pytest.raises(ValueError, match="2 colours for 3 paths"):
+    with pytest.raises(InputError, match="2 colours for 3 paths"):
         render.draw_trajectories(new_ax(), SMALL, paths, color=["r", "g"])
 
 
@@ -220,7 +220,7 @@ def test_beta_marginal_bars_and_true_value():
     ax = render.draw_beta_marginal(new_ax(), betas, bp, beta_true=2.0)
     assert "not in set" in ax.get_title()
     assert not [b for b in ax.patches if b.get_gid() == "beta-true"]
-    with pytest.raises(ValueError, match="expected 6 probabilities"):
+    with pytest.raises(InputError, match="expected 6 probabilities"):
         render.draw_beta_marginal(new_ax(), betas, bp[:3])
 
 
@@ -250,9 +250,9 @@ def test_theta_summary_without_truth_or_top_list():
     ax, ax_top = render.draw_theta_summary(new_ax(), thetas, [1, 1, 2], ["a", "b", "c"], top=0)
     assert ax_top is None
     np.testing.assert_allclose([b.get_height() for b in ax.patches], [0.25, 0.25, 0.5])
-    with pytest.raises(ValueError, match="2 feature names for 3 features"):
+    with pytest.raises(InputError, match="2 feature names for 3 features"):
         render.draw_theta_summary(new_ax(), thetas, [1, 1, 1], ["a", "b"])
-    with pytest.raises(ValueError, match="theta_true must have 3 components"):
+    with pytest.raises(InputError, match="theta_true must have 3 components"):
         render.draw_theta_summary(new_ax(), thetas, [1, 1, 1], "abc", theta_true=[1, 0])
 
 

@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import ArgumentError, InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
 from ..planning.soft_vi import solve
@@ -34,7 +34,7 @@ def _check_log_policy(mdp: TabularMDP, log_policy) -> np.ndarray:
     lp = np.asarray(log_policy, dtype=np.float64)
     S, A = mdp.n_states, mdp.n_actions
     if lp.shape != (S, A):
-        raise InputError(f"log_policy must have shape [S, A] = [{S}, {A}], got {lp.shape}")
+        raise ArgumentError(f"log_policy must have shape [S, A] = [{S}, {A}], got {lp.shape}")
     pi = np.exp(lp)
     if np.isnan(pi).any() or np.any(pi[~mdp.available] > 0):
         raise InputError("log_policy must be -inf on unavailable actions and contain no NaN")

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..demos.trajectories import Trajectories
-from ..errors import InputError
+from ..errors import ArgumentError, InputError
 from ..hypotheses import GROUP_NAMES, HypothesisSet
 from ..mdp import TabularMDP
 from ..planning.soft_vi import solve
@@ -114,7 +114,7 @@ class DiscreteBelief:
         H = len(hypotheses)
         log_policy = np.asarray(log_policy, dtype=np.float64)
         if log_policy.ndim != 3 or log_policy.shape[0] != H:
-            raise InputError(f"log_policy must have shape [H={H}, S, A], got {log_policy.shape}")
+            raise ArgumentError(f"log_policy must have shape [H={H}, S, A], got {log_policy.shape}")
         if np.isnan(log_policy).any() or (log_policy > 1e-9).any():
             raise InputError("log_policy must hold log-probabilities (no NaN, none above 0)")
         if prior is None:

@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 from scipy.special import expit, logsumexp
 
-from ..errors import InputError
+from ..errors import ArgumentError, InputError
 from ..hypotheses import HypothesisSet
 from .posterior import Summary, beta_quantile, summarise
 
@@ -171,7 +171,7 @@ def _check_episode_ll(episode_ll, hypotheses: HypothesisSet) -> np.ndarray:
     ll = np.asarray(episode_ll, dtype=np.float64)
     H = len(hypotheses)
     if ll.ndim != 2 or ll.shape[1] != H:
-        raise InputError(f"episode_ll must have shape [episodes, H={H}] "
+        raise ArgumentError(f"episode_ll must have shape [episodes, H={H}] "
                          f"({hypotheses.n_theta} θ × {hypotheses.n_beta} β), got {list(ll.shape)}")
     if ll.shape[0] == 0:
         raise InputError("episode_ll has no episodes")
@@ -185,7 +185,7 @@ def _check_log_prior_theta(log_prior_theta, n_theta: int) -> np.ndarray:
         return np.full(n_theta, -np.log(n_theta))
     lp = np.asarray(log_prior_theta, dtype=np.float64)
     if lp.shape != (n_theta,):
-        raise InputError(f"log_prior_theta must have shape [n_theta={n_theta}], got {list(lp.shape)}")
+        raise ArgumentError(f"log_prior_theta must have shape [n_theta={n_theta}], got {list(lp.shape)}")
     if np.isnan(lp).any() or (lp == np.inf).any() or not np.isfinite(lp).any():
         raise InputError("log_prior_theta must be log-weights (no NaN or +inf, at least one finite)")
     return lp - logsumexp(lp)
@@ -309,8 +309,9 @@ def changing_posterior(
         trend: ``None`` (a step either way), ``"falling"`` or ``"rising"`` (see the module).
         log_prior_theta: ``[n_theta]`` log-weights of θ (normalised here); uniform by default.
 
-    Raises :class:`InputError` on a bad shape, ε, trend or prior, no episodes, or episodes that no
-    hypothesis and no β sequence can produce.
+    Raises :class:`InputError` on a bad ε, trend or prior, no episodes, or episodes that no
+    hypothesis and no β sequence can produce; :class:`~expertise_irl.errors.ArgumentError` on
+    arrays of the wrong shape.
     """
     ll = _check_episode_ll(episode_ll, hypotheses)
     eps = _check_epsilons(epsilons)

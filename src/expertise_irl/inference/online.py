@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..demos.trajectories import Trajectories
-from ..errors import InputError
+from ..errors import ArgumentError, InputError
 from ..hypotheses import HypothesisSet, expertise_group
 from ..mdp import TabularMDP
 from .belief import DiscreteBelief
@@ -186,7 +186,7 @@ class OnlineEstimator:
             raise InputError("progress and solver options apply only when log_policy is not given")
         lp = np.asarray(log_policy, dtype=np.float64)
         if lp.shape != (H, mdp.n_states, mdp.n_actions):
-            raise InputError(
+            raise ArgumentError(
                 f"log_policy must have shape [H, S, A] = [{H}, {mdp.n_states}, {mdp.n_actions}], "
                 f"got {lp.shape}"
             )

@@ -32,14 +32,16 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..errors import InputError
+
 
 def _check_truths_draws(truths, draws) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(truths, dtype=np.float64)
     d = np.asarray(draws, dtype=np.float64)
     if t.ndim != 1 or d.ndim != 2 or d.shape[0] != t.shape[0] or d.shape[1] < 1:
-        raise ValueError(f"truths must be [n] and draws [n, L] with L >= 1, got {t.shape} and {d.shape}")
+        raise InputError(f"truths must be [n] and draws [n, L] with L >= 1, got {t.shape} and {d.shape}")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(d))):
-        raise ValueError("truths and draws must be finite")
+        raise InputError("truths and draws must be finite")
     return t, d
 
 
@@ -70,9 +72,9 @@ def rank_histogram(rank: np.ndarray, n_draws: int, bins: int) -> tuple[np.ndarra
     r = np.asarray(rank)
     L = int(n_draws)
     if not 1 <= bins <= L + 1:
-        raise ValueError(f"bins must be in [1, L + 1] = [1, {L + 1}], got {bins}")
+        raise InputError(f"bins must be in [1, L + 1] = [1, {L + 1}], got {bins}")
     if r.ndim != 1 or not np.issubdtype(r.dtype, np.integer) or np.any((r < 0) | (r > L)):
-        raise ValueError(f"ranks must be a 1-D array of integers in [0, {L}]")
+        raise InputError(f"ranks must be a 1-D array of integers in [0, {L}]")
     which = r * bins // (L + 1)
     counts = np.bincount(which, minlength=bins)
     per_bin = np.bincount(np.arange(L + 1) * bins // (L + 1), minlength=bins)
@@ -116,10 +118,10 @@ def thin(draws, n_keep: int) -> np.ndarray:
     """
     d = np.asarray(draws)
     if d.ndim < 2:
-        raise ValueError(f"draws must be [chains, draws, ...], got shape {d.shape}")
+        raise InputError(f"draws must be [chains, draws, ...], got shape {d.shape}")
     flat = d.reshape(d.shape[0] * d.shape[1], *d.shape[2:])
     if not 1 <= n_keep <= flat.shape[0]:
-        raise ValueError(f"n_keep must be in [1, {flat.shape[0]}] (the run's draws), got {n_keep}")
+        raise InputError(f"n_keep must be in [1, {flat.shape[0]}] (the run's draws), got {n_keep}")
     return flat[np.round(np.linspace(0, flat.shape[0] - 1, n_keep)).astype(np.int64)]
 
 
@@ -135,7 +137,7 @@ def central_intervals(draws, prob: float = 0.9) -> tuple[np.ndarray, np.ndarray]
     (the ``(1 − prob)/2`` and ``(1 + prob)/2`` quantiles, NumPy's linear interpolation)."""
     d = np.asarray(draws, dtype=np.float64)
     if d.ndim != 2 or not 0 < prob < 1:
-        raise ValueError(f"draws must be [n, M] and 0 < prob < 1, got {d.shape} and {prob}")
+        raise InputError(f"draws must be [n, M] and 0 < prob < 1, got {d.shape} and {prob}")
     lo, hi = np.quantile(d, [(1 - prob) / 2, (1 + prob) / 2], axis=1)
     return lo, hi
 
@@ -166,7 +168,7 @@ def coverage(truths, low, high, confidence: float = 0.95) -> Coverage:
 
     t, lo, hi = (np.asarray(a, dtype=np.float64) for a in (truths, low, high))
     if not (t.ndim == 1 and t.shape == lo.shape == hi.shape):
-        raise ValueError(f"truths, low and high must be [n] alike, got {t.shape}, {lo.shape}, {hi.shape}")
+        raise InputError(f"truths, low and high must be [n] alike, got {t.shape}, {lo.shape}, {hi.shape}")
     n = int(t.size)
     k = int(np.sum((lo <= t) & (t <= hi)))
     if n == 0:
@@ -186,9 +188,9 @@ def coverage_by_bins(truths, low, high, covariate, edges) -> list[tuple[float, f
     t, lo, hi, c = (np.asarray(a, dtype=np.float64) for a in (truths, low, high, covariate))
     e = np.asarray(edges, dtype=np.float64)
     if e.ndim != 1 or e.size < 2 or np.any(np.diff(e) <= 0):
-        raise ValueError(f"edges must be increasing with at least 2 values, got {list(edges)}")
+        raise InputError(f"edges must be increasing with at least 2 values, got {list(edges)}")
     if c.shape != t.shape:
-        raise ValueError(f"covariate must be [n] like truths, got {c.shape} and {t.shape}")
+        raise InputError(f"covariate must be [n] like truths, got {c.shape} and {t.shape}")
     out = []
     for i in range(e.size - 1):
         last = i == e.size - 2

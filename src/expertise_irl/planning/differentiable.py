@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import InputError
+from ..errors import ArgumentError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
 from ..numerics import enable_float64
@@ -126,7 +126,7 @@ class LogLikelihood:
         check_model(model)
         counts = np.asarray(counts, dtype=np.float64)
         if counts.shape != (mdp.n_states, mdp.n_actions):
-            raise InputError(f"counts must have shape [S, A] = [{mdp.n_states}, {mdp.n_actions}]")
+            raise ArgumentError(f"counts must have shape [S, A] = [{mdp.n_states}, {mdp.n_actions}]")
         self._prep = prep = kernel.prepare(mdp, jnp.float64)
         nb = prep.n_block
         # Counts in the solver's layout [2, A, n_block]; terminal and padding rows observe nothing.
@@ -227,7 +227,7 @@ class TaskSum:
 
     def __call__(self, theta, beta, v0=None, *, start: tuple | None = None, counts: tuple | None = None):
         if v0 is not None:
-            raise InputError("v0 warm starts a single task; pass start= for several")
+            raise ArgumentError("v0 warm starts a single task; pass start= for several")
         return sum(p(theta, beta, start=s, counts=c)[0] for p, s, c in self._each(start, counts)), None
 
     def start_at(self, theta, beta, start: tuple | None = None, counts: tuple | None = None) -> tuple:

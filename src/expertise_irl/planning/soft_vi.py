@@ -24,7 +24,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import ConvergenceError, InputError
+from ..errors import ArgumentError, ConvergenceError, InputError
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
 from ..numerics import enable_float64
@@ -126,12 +126,12 @@ def _as_hypotheses(mdp: TabularMDP, theta, beta) -> tuple[np.ndarray, np.ndarray
     if beta.ndim == 0:
         beta = np.full(theta.shape[0], float(beta))
     if theta.ndim != 2 or theta.shape[1] != mdp.n_features:
-        raise InputError(
+        raise ArgumentError(
             f"theta must have shape [H, K] with K = {mdp.n_features} features "
             f"({', '.join(mdp.feature_names)}), got {theta.shape}"
         )
     if beta.shape != (theta.shape[0],):
-        raise InputError(f"beta must have shape [H] = [{theta.shape[0]}], got {beta.shape}")
+        raise ArgumentError(f"beta must have shape [H] = [{theta.shape[0]}], got {beta.shape}")
     if not np.all(np.isfinite(theta)):
         raise InputError("theta must be finite")
     if not np.all(np.isfinite(beta)) or np.any(beta <= 0):
@@ -243,7 +243,8 @@ def solve(
             the same; ``iterations`` counts the jumps' and level sweeps' cost in sweeps.
 
     Raises:
-        InputError: bad shapes, non-finite θ, or β <= 0.
+        InputError: non-finite θ, β <= 0, θ/β too large, or an unknown option.
+        ArgumentError: θ, β or ``v_init`` of the wrong shape, or ``v_init`` not finite.
         ConvergenceError: a hypothesis did not converge within ``max_iter`` sweeps.
     """
     enable_float64()
@@ -321,9 +322,9 @@ def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progre
     if v_init is not None:
         v_init = np.asarray(v_init, dtype=np.float64)
         if v_init.shape != (H, S):
-            raise InputError(f"v_init must have shape [H, S] = [{H}, {S}], got {v_init.shape}")
+            raise ArgumentError(f"v_init must have shape [H, S] = [{H}, {S}], got {v_init.shape}")
         if not np.all(np.isfinite(v_init)):
-            raise InputError("v_init must be finite")
+            raise ArgumentError("v_init must be finite")
         scaled0[:, prep.rows] = v_init / beta[:, None]
         scaled0[:, -1] = 0.0
     weights = mdp.reward_weights(theta) / beta[:, None]

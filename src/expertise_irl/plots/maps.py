@@ -216,7 +216,7 @@ def draw_trajectories(
     else:
         colors = list(color)
         if len(colors) != n:
-            raise ValueError(f"{len(colors)} colours for {n} paths")
+            raise InputError(f"{len(colors)} colours for {n} paths")
     offsets = _jitter_offsets(n, jitter)
     for i, p in enumerate(paths_xy):
         p = np.asarray(p)
@@ -256,9 +256,9 @@ def paths_to_xy(trajs: Trajectories, mdp: TabularMDP) -> list[np.ndarray]:
 def _check_probs(probs, n: int, what: str) -> np.ndarray:
     p = np.asarray(probs, dtype=float)
     if p.shape != (n,):
-        raise ValueError(f"{what}: expected {n} probabilities, got shape {p.shape}")
+        raise InputError(f"{what}: expected {n} probabilities, got shape {p.shape}")
     if not np.all(np.isfinite(p)) or (p < 0).any() or p.sum() <= 0:
-        raise ValueError(f"{what}: probabilities must be finite, non-negative, not all 0")
+        raise InputError(f"{what}: probabilities must be finite, non-negative, not all 0")
     return p
 
 
@@ -367,10 +367,10 @@ def draw_theta_summary(
     p = p / p.sum()
     names = list(feature_names)
     if len(names) != K:
-        raise ValueError(f"{len(names)} feature names for {K} features")
+        raise InputError(f"{len(names)} feature names for {K} features")
     true = None if theta_true is None else np.asarray(theta_true, dtype=float).ravel()
     if true is not None and true.shape != (K,):
-        raise ValueError(f"theta_true must have {K} components, got {true.shape}")
+        raise InputError(f"theta_true must have {K} components, got {true.shape}")
     _draw_theta_means(ax, th, p, names, true, absent)
     if top <= 0:
         return ax, None
@@ -395,7 +395,7 @@ def _draw_theta_means(ax: Axes, th: np.ndarray, p: np.ndarray, names: list[str],
         ax.bar(x + shift, true, width, color="#dd8452", label=r"true $\theta^*$", gid="true")
     gone = [False] * K if absent is None else [bool(a) for a in absent]
     if len(gone) != K:
-        raise ValueError(f"absent must have {K} entries, got {len(gone)}")
+        raise InputError(f"absent must have {K} entries, got {len(gone)}")
     ax.set_xticks(x, [f"{nm}\n(not on\nthe map)" if g else nm for nm, g in zip(names, gone, strict=True)],
                   fontsize=8)
     for xi, (tick, g) in enumerate(zip(ax.get_xticklabels(), gone, strict=True)):
