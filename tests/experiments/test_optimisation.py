@@ -137,3 +137,34 @@ def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
     wall = pd.read_csv(out / "tables" / "walltime.csv")
     assert set(wall.iloc[:, 0]) >= {"discrete", "birl_box"}
     assert "5.005" in md  # the prior is stated
+
+
+def test_the_budget_ablation_adds_a_method_per_budget_and_a_verdict_column_each(tmp_path):
+    """``birl_budgets``: `birl_box@40` (2 chains × 40 iterations) and `birl_box@rhat` (2 chains in
+    blocks of 1,000 until R-hat < 1.01, at most 1,000 here); their rows carry the budget and chains,
+    and the report judges Algorithm 1's claims once per budget."""
+    from expertise_irl.experiments.report import build_report
+
+    cfg = dataclasses.replace(SMOKE, methods=("discrete",), birl_budgets=("40", "rhat"), birl_chains=2,
+                              birl_max_iterations=1000)
+    out = tmp_path / "ablation"
+    summary = run(STUDY, out, scale="smoke", seed=0, workers=1, config=cfg)
+    assert summary.failed == 0
+    rows = load(out)
+    assert len(rows) == STUDY.counts(cfg)["rows"]
+    fixed, rhat = rows[rows.method == "birl_box@40"], rows[rows.method == "birl_box@rhat"]
+    assert (fixed.birl_iterations == 40).all() and (fixed.birl_chains == 2).all()
+    assert (rhat.birl_iterations == 1000).all() or (rhat.max_rhat < 1.01).all()
+    assert not rows.loc[rows.method != "discrete", "max_rhat"].isna().any()
+    assert (rows.loc[rows.method == "discrete", ["birl_iterations", "birl_chains"]] == 0).all().all()
+    md = build_report(out).read_text()
+    table = pd.read_csv(out / "report" / "tables" / "budget_ablation.csv").set_index("claim")
+    assert {"birl_box@40", "birl_box@rhat"} <= set(table.columns) and "VII-D" in table.index
+    assert "## Algorithm 1's budget" in md
+
+
+def test_bad_budgets_are_refused():
+    with pytest.raises(InputError, match="birl_budgets entries"):
+        OptimisationConfig(birl_budgets=("many",))
+    with pytest.raises(InputError, match="birl_chains must be at least 1 .2 with"):
+        OptimisationConfig(birl_budgets=("rhat",), birl_chains=1)

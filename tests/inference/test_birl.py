@@ -419,3 +419,46 @@ def test_a_log_spaced_beta_lattice_refuses_a_bad_ratio(tiny):
     for ratio, match in ((1.0, "beta_ratio must be"), (10.0, "leaves a single")):
         with pytest.raises(InputError, match=match):
             extended_birl(mdp, trajs, n_iter=5, rng=0, beta_ratio=ratio, beta_range=(0.2, 0.8))
+
+
+# ------------------------------------------------------------------------ several chains
+def test_chains_run_until_they_agree_and_pool_to_the_exact_posterior(tiny):
+    """Four chains (simplex, moves either) in blocks of 2,000 until split R-hat < 1.01: they stop
+    once they agree, and the pooled means match the exact lattice posterior (|z| < 5 as above,
+    the batch-means error taken over the pooled draws of the four chains, which the shared
+    target makes exchangeable)."""
+    from expertise_irl.inference.birl_chains import birl_chains
+
+    mdp, trajs = tiny
+    r = birl_chains(mdp, trajs, chains=4, rhat_below=1.01, block=2000, max_iter=40_000, variant="simplex",
+                    rng=np.random.default_rng(5), burn_in=0.05, **TINY_GRID)
+    assert r.converged and r.max_rhat < 1.01 and r.iterations % 2000 == 0 and r.iterations < 40_000
+    assert r.theta.shape == (4, r.iterations + 1, 3)
+    thetas, betas, p = _exact_posterior(mdp, trajs, "simplex", _log_uniform)
+    kt = r.theta[:, r.n_burn:].reshape(-1, 3)
+    kb = r.beta[:, r.n_burn:].reshape(-1)
+    z = {}
+    for name, chain, values in [*((f"E[theta_{k}]", kt[:, k], thetas[:, k]) for k in range(3)),
+                                ("E[beta]", kb, betas)]:
+        mean = p @ values
+        z[name] = _z(chain, mean, p @ values**2 - mean**2)
+    assert max(abs(v) for v in z.values()) < 5, z
+    np.testing.assert_allclose(r.mean_theta, kt.mean(axis=0))
+
+
+def test_chains_with_a_fixed_budget_are_reproducible_and_share_their_solves(tiny):
+    from expertise_irl.inference.birl_chains import birl_chains
+
+    mdp, trajs = tiny
+    kw = dict(chains=3, n_iter=300, variant="box", rng=None, **TINY_GRID)
+    a = birl_chains(mdp, trajs, **{**kw, "rng": np.random.default_rng(1)})
+    b = birl_chains(mdp, trajs, **{**kw, "rng": np.random.default_rng(1)})
+    assert a.iterations == 300 and not a.converged and a.theta.shape == (3, 301, 3)
+    np.testing.assert_array_equal(a.theta, b.theta)
+    assert not math.isnan(a.max_rhat)  # two or more chains: an R-hat (inf where a chain never moved)
+    # one shared cache: the tiny box lattice has 34 θ × 4 β points, far fewer than 900 proposals
+    assert a.n_solves <= 34 * 4 and a.n_cache_hits > 0
+    with pytest.raises(InputError, match="chains must be"):
+        birl_chains(mdp, trajs, **{**kw, "chains": 0, "rng": np.random.default_rng(1)})
+    with pytest.raises(InputError, match="rhat_below must be"):
+        birl_chains(mdp, trajs, **{**kw, "rhat_below": 0.9, "rng": np.random.default_rng(1)})

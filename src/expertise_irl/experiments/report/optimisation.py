@@ -6,6 +6,7 @@ import numpy as np
 
 from ...hypotheses import GROUP_NAMES as GROUPS
 from . import figures as F
+from .budget import budget_section
 from .capped import capped_section, last_rows
 from .identifiability import gap_section
 from .optimisation_claims import JUDGED, KEY, PERSON, RESCALED, claims, table4
@@ -257,4 +258,7 @@ def build(sweep) -> Report:
     if gap is not None:
         report.sections.append(gap)
     report.sections.append(regrets_section(rows, PERSON, "method"))
+    ablation = budget_section(rows, e, shared)
+    if ablation is not None:
+        report.sections.append(ablation)
     return report

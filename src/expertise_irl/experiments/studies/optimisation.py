@@ -107,6 +107,13 @@ class OptimisationConfig:
     model: str = "maxent"
     goal_reward_mode: str = "scaled"  # the protocol: how the goal pays (worlds.grid.GOAL_REWARD_MODES)
     goal_bonus: float = 10.0  # what entering the goal pays (in `length` when scaled, outside θ·φ when fixed)
+    # Algorithm 1's budget ablation: each entry adds a method `birl_box@<entry>`, `birl_chains` chains
+    # of the box variant pooled, run for that many iterations each, or ("rhat") until their split
+    # R-hat is below `birl_rhat` (checked every 1,000 iterations, at most `birl_max_iterations`)
+    birl_budgets: tuple[str, ...] = ()
+    birl_chains: int = 4
+    birl_rhat: float = 1.01
+    birl_max_iterations: int = 20_000
 
     def __post_init__(self) -> None:
         from ...inference.priors import get_prior
@@ -121,6 +128,15 @@ class OptimisationConfig:
             raise InputError(f"need 0 < beta_low < beta_high, got {self.beta_low}, {self.beta_high}")
         if self.birl_iterations < 1 or self.map_starts < 1 or self.nuts_chains < 1:
             raise InputError("birl_iterations, map_starts and nuts_chains must be at least 1")
+        object.__setattr__(self, "birl_budgets", tuple(str(b) for b in self.birl_budgets))
+        for b in self.birl_budgets:
+            if b != "rhat" and not (b.isdigit() and int(b) >= 1):
+                raise InputError(f"birl_budgets entries must be a number of iterations or \"rhat\", "
+                             f"got {b!r}")
+        if self.birl_chains < (2 if "rhat" in self.birl_budgets else 1):
+            raise InputError(f"birl_chains must be at least 1 (2 with \"rhat\"), got {self.birl_chains}")
+        if not self.birl_rhat > 1 or self.birl_max_iterations < 1000:
+            raise InputError("birl_rhat must be > 1 and birl_max_iterations at least 1000")
         get_prior(self.prior)
         check_model(self.model)
         check_set_sizes(self.thetas, self.betas, (self.k,))
@@ -129,6 +145,11 @@ class OptimisationConfig:
     @property
     def episodes(self) -> int:
         return max(self.episode_counts)
+
+    @property
+    def budget_methods(self) -> tuple[str, ...]:
+        """The methods of the budget ablation, ``birl_box@<budget>``, in ``birl_budgets``' order."""
+        return tuple(f"birl_box@{b}" for b in self.birl_budgets)
 
     def runs_nuts(self, instance: int) -> bool:
         return "nuts" in self.methods and (self.nuts_instances < 0 or instance < self.nuts_instances)
@@ -205,14 +226,15 @@ def estimate_s(cfg: OptimisationConfig, i: int) -> float:
     per = {"discrete": 0.1 + states * 3e-4, "birl_box": alg1, "birl_simplex": alg1,
            "map": 0.5 + states * 2.7e-3,
            "nuts": 2.0 + states * 5.2e-5 * cfg.nuts_chains * (cfg.nuts_warmup + cfg.nuts_samples)}
+    budgets = sum(cfg.birl_max_iterations if b == "rhat" else int(b) for b in cfg.birl_budgets)
     return 2.0 + sum(per[m] * (1 if m == "discrete" else n) for m in cfg.methods
-                     if m != "nuts" or cfg.runs_nuts(i))
+                     if m != "nuts" or cfg.runs_nuts(i)) + states * 8.7e-6 * budgets * cfg.birl_chains * n
 
 
 def counts(cfg: OptimisationConfig) -> dict[str, int]:
     inst = cfg.environments * cfg.instances
     nuts_inst = cfg.environments * sum(cfg.runs_nuts(i) for i in range(cfg.instances))
-    per = len([m for m in cfg.methods if m != "nuts"])
+    per = len([m for m in cfg.methods if m != "nuts"]) + len(cfg.birl_budgets)
     return {"tasks": inst, "instances": inst,
             "rows": len(cfg.episode_counts) * (inst * per + nuts_inst),
             "set_solves_grouped": inst if "discrete" in cfg.methods else 0,
@@ -285,6 +307,7 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
         return r.mean_theta, r.mean_beta, t, {"divergences": float(r.divergences), "max_rhat": rhat}
 
     methods = {
+        **_budget_runs(cfg, mdp, trajs, seeds, common),
         "birl_box": birl("box"),
         "birl_simplex": birl("simplex"),
         "map": (lambda: get_method("map").fit(mdp, trajs.first(2), MAPOptions(starts=1, **common),
@@ -292,7 +315,7 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
         "nuts": (lambda: nuts_fit(trajs.first(2), 5, 5, 1, 0), nuts_one),
     }
     results: dict[str, dict[int, tuple]] = {}
-    for m in cfg.methods:
+    for m in (*cfg.methods, *cfg.budget_methods):
         if m == "discrete":
             solve_padded(mdp, hyp.theta, hyp.beta, cfg.model)  # warm-up: compile this shape
             results[m] = discrete()
@@ -301,6 +324,30 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
             warm()
             results[m] = {n: one(n) for n in cfg.episode_counts}
     return _rows(cfg, seed, zm, mdp, inst, hyp, results), {}
+
+
+def _budget_runs(cfg, mdp, trajs, seeds, common) -> dict[str, tuple]:
+    """The budget ablation's methods (:attr:`OptimisationConfig.budget_methods`): a warm-up and a
+    run per episode count, each ``birl_chains`` chains of the box variant pooled."""
+    from ...inference.birl_chains import birl_chains
+
+    def fit(tr, budget: str, rng):
+        kw = ({"rhat_below": cfg.birl_rhat, "max_iter": cfg.birl_max_iterations, "block": 1000}
+              if budget == "rhat" else {"n_iter": int(budget)})
+        return birl_chains(mdp, tr, chains=cfg.birl_chains, rng=rng, variant="box", **kw, **common)
+
+    def run(budget: str, b: int):
+        def one(n: int):
+            rng = np.random.default_rng([seeds["birl_box"], n, b])
+            r, t = _timed(lambda: fit(trajs.first(n), budget, rng))
+            extra = {"acceptance_rate": r.acceptance_rate, "max_rhat": r.max_rhat,
+                     "birl_iterations": r.iterations, "birl_chains": cfg.birl_chains}
+            return r.mean_theta, r.mean_beta, t, extra
+        return (lambda: birl_chains(mdp, trajs.first(2), chains=2, n_iter=3, rng=np.random.default_rng(0),
+                                    **common)), one
+
+    pairs = zip(cfg.budget_methods, cfg.birl_budgets, strict=True)
+    return {m: run(b, k + 1) for k, (m, b) in enumerate(pairs)}
 
 
 def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndarray]:
@@ -338,6 +385,11 @@ def _rows(cfg, seed, zm, mdp, inst: Instance, hyp, results) -> dict[str, np.ndar
     col["wall_time_s"] = np.array([results[m][n][2] for m, n in keys], dtype=np.float64)
     for name in ("acceptance_rate", "divergences", "max_rhat"):
         col[name] = np.array([results[m][n][3].get(name, np.nan) for m, n in keys], dtype=np.float64)
+    one_chain = {"birl_box": (cfg.birl_iterations, 1), "birl_simplex": (cfg.birl_iterations, 1)}
+    budget = [(results[m][n][3].get("birl_iterations"), results[m][n][3].get("birl_chains"))
+              if m not in one_chain else one_chain[m] for m, n in keys]
+    col["birl_iterations"] = np.array([it or 0 for it, _ in budget], dtype=np.int64)
+    col["birl_chains"] = np.array([c or 0 for _, c in budget], dtype=np.int32)
     return col
 
 
@@ -363,7 +415,7 @@ COLUMNS = (
     Column("environment", "int32", "environment index e (the `conditions` study's map `(e,)`)"),
     Column("instance", "int32", "instance index i within the environment"),
     Column("method", "string", "`discrete` (Ψ_20), `birl_box` (Algorithm 1 as printed), `birl_simplex`, "
-           "`map`, `nuts`"),
+           "`map`, `nuts`, and the budget ablation's `birl_box@<iterations>` / `birl_box@rhat`"),
     Column("episodes", "int32", "episodes the method saw (the first n of the instance's 40)"),
     *episode_columns("actions in those episodes",
                      "episodes among them that hit `max_steps` without reaching the goal"),
@@ -384,14 +436,19 @@ COLUMNS = (
                        "solve plus the belief updates)",
         "acceptance_rate": "Algorithm 1's accepted moves / iterations (NaN otherwise)",
         "divergences": "NUTS divergent transitions after warm-up (NaN otherwise)",
-        "max_rhat": "NUTS: largest split-R̂ over β and θ (inf when a chain did not move in one of them; "
-                    "NaN for the other methods or when R̂ is not computed)",
+        "max_rhat": "NUTS, and the budget ablation's Algorithm 1 (`birl_box@…`, over β and θ/‖θ‖₁): largest "
+                    "split-R̂ over β and θ (inf when a chain did not move in one of them; NaN for the other "
+                    "methods or when R̂ is not computed)",
     }),
+    Column("birl_iterations", "int64", "Algorithm 1's iterations per chain (0 for the other methods)"),
+    Column("birl_chains", "int32", "Algorithm 1's independent chains, pooled (1 for `birl_box` and "
+           "`birl_simplex`, `birl_chains` for `birl_box@…`; 0 for the other methods)"),
 )
 
 STUDY = Study(
     name="optimisation",
-    # 4: return_regret; 3: goal_reward_mode (the protocol) and the log-likelihoods at the truth and estimate
+    # 4: return_regret, the budget ablation (birl_iterations, birl_chains); 3: goal_reward_mode (the
+    # protocol) and the log-likelihoods at the truth and estimate
     version=4,
     description="Sec. VII: Algorithm 1 (as printed), ours (simplex, MAP, NUTS) vs the discrete set Ψ_20",
     config_type=OptimisationConfig, scales=SCALES, tasks=tasks, run_task=run_task, counts=counts,
