@@ -54,9 +54,10 @@ def run_cmd(
     """Run a sweep, or resume it: finished tasks are skipped, each task's rows land in one shard."""
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeRemainingColumn
 
-    from ..experiments.engine import cores, run
+    from ..experiments.engine import run
     from ..experiments.spec import config_from_toml
     from ..experiments.studies import get_study
+    from ..experiments.workers import cores
 
     st = get_study(study)
     cfg = st.config(scale)  # a bad scale (or config file) is reported before any directory is made
@@ -98,7 +99,8 @@ def status_cmd(
     out: Annotated[Path, typer.Argument(metavar="DIR", help="Sweep directory.")],
 ) -> None:
     """Tasks done / total / failed, rows, time spent and an estimate of the time left."""
-    from ..experiments.engine import cores, status
+    from ..experiments.engine import status
+    from ..experiments.workers import cores
 
     s = status(out)
     n = cores()
@@ -135,8 +137,8 @@ def list_cmd(
     """
     from rich.table import Table
 
-    from ..experiments.engine import cores
     from ..experiments.studies import studies
+    from ..experiments.workers import cores
 
     n = workers or cores()
     table = Table(title=f"studies (estimated time with {n} local worker(s), from timings on a 2-core "

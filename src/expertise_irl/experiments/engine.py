@@ -47,10 +47,11 @@ from .store import (
     to_toml,
     versions,
 )
-from .workers import (  # noqa: F401  (FAULTS_ENV, JAX_CACHE_ENV, execute_task: public here too)
+from .workers import (  # noqa: F401  (FAULTS_ENV, JAX_CACHE_ENV, cores, execute_task: public here too)
     FAULTS_ENV,
     JAX_CACHE_ENV,
     TaskResult,
+    cores,
     error_info,
     execute_task,
     faults,
@@ -60,14 +61,6 @@ from .workers import (  # noqa: F401  (FAULTS_ENV, JAX_CACHE_ENV, execute_task: 
 )
 
 SCALES = ("smoke", "small", "paper")
-
-
-def cores() -> int:
-    """CPU cores this process may use (the default number of local workers)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
 
 
 def _now() -> str:

@@ -35,6 +35,15 @@ LOCAL_ATTEMPTS = 3
 DASK_RETRIES = 2
 
 
+def cores() -> int:
+    """The CPU cores this process may use (its affinity where the system tells it, else all of
+    them): the default number of local workers, of experiments and of a study's figures alike."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
 def faults() -> list[tuple[str, str]]:
     """Faults to inject, from ``EXPERTISE_IRL_FAULTS`` (comma-separated ``kind:arg``).
 

@@ -24,6 +24,7 @@ from typing import Any
 
 from ..atomic import write_atomic
 from ..errors import InputError
+from ..experiments.workers import cores
 from ..plots.userstudy import light_panel, participant_png_bytes
 
 #: One figure to draw: where its PNG goes, the participant, their task panels, their result document.
@@ -50,14 +51,6 @@ def select_figures(participants: Iterable[str], spec: str | int) -> list[str]:
     if text.isascii() and text.isdigit() and int(text) > 0:
         return ids[: int(text)]
     raise InputError(f"--figures must be all, none or a positive number, got {str(spec)!r}")
-
-
-def cores() -> int:
-    """The cores this process may use."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # not on Linux
-        return max(os.cpu_count() or 1, 1)
 
 
 def draw_figures(jobs: Iterable[Job], *, workers: int | None = None, scheduler: str | None = None,
