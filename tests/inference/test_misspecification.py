@@ -22,7 +22,7 @@ from expertise_irl.inference.misspecification import (
     misspecification,
     verdict,
 )
-from expertise_irl.inference.predictive_checks import holm, p_value, simulate_from_starts
+from expertise_irl.inference.predictive_checks import holm_rejections, p_value, simulate_from_starts
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.worlds.zones import parse_map
 
@@ -73,9 +73,9 @@ def test_p_value_of_an_outlier_and_of_missing_values():
 
 def test_holm_steps_down():
     # m = 3: 0.01 <= 0.05/3, 0.02 <= 0.05/2, 0.04 <= 0.05/1 -> all three; 0.03 after 0.02 fails 0.025
-    assert holm({"a": 0.01, "b": 0.02, "c": 0.04}) == {"a": True, "b": True, "c": True}
-    assert holm({"a": 0.01, "b": 0.03, "c": 0.04}) == {"a": True, "b": False, "c": False}
-    assert holm({"a": 0.02, "b": None}) == {"a": True, "b": False}
+    assert holm_rejections({"a": 0.01, "b": 0.02, "c": 0.04}) == {"a": True, "b": True, "c": True}
+    assert holm_rejections({"a": 0.01, "b": 0.03, "c": 0.04}) == {"a": True, "b": False, "c": False}
+    assert holm_rejections({"a": 0.02, "b": None}) == {"a": True, "b": False}
 
 
 def test_replicates_start_where_the_episodes_started_and_follow_a_deterministic_policy(world):

@@ -128,9 +128,9 @@ def test_effect_sign_follows_the_group_with_larger_beta():
 
 def test_holm_by_hand():
     # sorted 0.01, 0.03, 0.04, 0.5 → × 4, 3, 2, 1 = 0.04, 0.09, 0.08, 0.5 → running max.
-    assert gr.holm([0.01, 0.04, 0.03, 0.5]) == pytest.approx([0.04, 0.09, 0.09, 0.5])
-    assert gr.holm([0.6, 0.9]) == pytest.approx([1.0, 1.0])
-    assert gr.holm([]) == []
+    assert gr.holm_adjusted([0.01, 0.04, 0.03, 0.5]) == pytest.approx([0.04, 0.09, 0.09, 0.5])
+    assert gr.holm_adjusted([0.6, 0.9]) == pytest.approx([1.0, 1.0])
+    assert gr.holm_adjusted([]) == []
 
 
 def test_more_groups_test_every_pair_with_holm():

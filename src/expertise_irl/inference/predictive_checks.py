@@ -199,7 +199,7 @@ def p_value(observed: float, replicated: np.ndarray, *, one_sided: bool, v: floa
     return float(min(1.0, 2 * min(u, 1.0 - u)))
 
 
-def holm(p: dict[str, float | None], alpha: float = ALPHA) -> dict[str, bool]:
+def holm_rejections(p: dict[str, float | None], alpha: float = ALPHA) -> dict[str, bool]:
     """Holm's step-down rejections at family-wise level ``alpha`` (None: not tested, not rejected)."""
     tested = sorted((v, k) for k, v in p.items() if v is not None)
     m = len(tested)
@@ -275,7 +275,7 @@ def predictive_checks(tasks: Sequence[Task], which: np.ndarray, rng: np.random.G
                        "q05": float(np.quantile(fin, 0.05)) if fin.size else None,
                        "q95": float(np.quantile(fin, 0.95)) if fin.size else None,
                        "p_value": p, "sided": "upper" if one else "two"}
-    rejected = holm(pvals, alpha)
+    rejected = holm_rejections(pvals, alpha)
     for name in stats:
         stats[name]["rejected"] = rejected[name]
     return {

@@ -120,7 +120,7 @@ def group_summaries(rows: Sequence[Mapping[str, Any]], column: str,
     return out
 
 
-def holm(p: Sequence[float]) -> list[float]:
+def holm_adjusted(p: Sequence[float]) -> list[float]:
     """Holm's step-down adjustment: sorted ascending, p_(i) · (m − i + 1) (i from 1), made
     non-decreasing by a running maximum and capped at 1; returned in the input's order."""
     p = np.asarray(p, dtype=np.float64)
@@ -182,7 +182,7 @@ def group_tests(rows: Sequence[Mapping[str, Any]], column: str,
                          larger=a if r > 0 else b if r < 0 else None)
         out.append(entry)
     tested = [e for e in out if e["p"] is not None]
-    for e, ph in zip(tested, holm([e["p"] for e in tested]), strict=True):
+    for e, ph in zip(tested, holm_adjusted([e["p"] for e in tested]), strict=True):
         e["p_holm"] = ph
     return out
 
