@@ -58,7 +58,7 @@ from scipy.special import expit, logsumexp
 
 from ..errors import ArgumentError, InputError
 from ..hypotheses import HypothesisSet
-from .posterior import Summary, beta_quantile, summarise
+from .posterior import Summary, beta_quantile, log_sum_exp, summarise
 
 #: The default grid of switching probabilities ε (0 = the stationary model).
 EPSILONS: tuple[float, ...] = (0.0, 0.02, 0.05, 0.1, 0.2)
@@ -102,15 +102,6 @@ def _lse3(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     m0 = np.where(np.isfinite(m), m, 0.0)
     with np.errstate(divide="ignore"):
         return m0 + np.log(np.exp(a - m0) + np.exp(b - m0) + np.exp(c - m0))
-
-
-def _lse(x: np.ndarray, axis) -> np.ndarray:
-    """log Σ exp(x) over ``axis`` with the max taken out (−inf, no NaN, where all are −inf); the
-    plain form of :func:`scipy.special.logsumexp`, which costs twice as much on these arrays."""
-    m = np.max(x, axis=axis, keepdims=True)
-    m0 = np.where(np.isfinite(m), m, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.squeeze(m0, axis=axis) + np.log(np.sum(np.exp(x - m0), axis=axis))
 
 
 def _shift_right(x: np.ndarray) -> np.ndarray:
@@ -331,9 +322,9 @@ def changing_posterior(
     for e in range(1, E):
         la[e] = _push(la[e - 1], lt) + L[e][None]
     # θ prior folded in: lf[e, ε, j] = log P(ξ_1..ξ_e, β_e = j | ε).
-    lf = _lse(la + lpt[None, None, :, None], axis=2)  # [E, n_eps, J]
-    log_zt = _lse(la[-1], axis=-1)  # [n_eps, θ]: log P(Ξ | θ, ε)
-    log_z = _lse(lf[-1], axis=-1)  # [n_eps]
+    lf = log_sum_exp(la + lpt[None, None, :, None], axis=2)  # [E, n_eps, J]
+    log_zt = log_sum_exp(la[-1], axis=-1)  # [n_eps, θ]: log P(Ξ | θ, ε)
+    log_z = log_sum_exp(lf[-1], axis=-1)  # [n_eps]
     if not np.isfinite(log_z).any():
         raise InputError("no hypothesis and no sequence of β can produce these episodes "
                          "(every one has an impossible action)")
@@ -355,14 +346,14 @@ def changing_posterior(
     for e in range(E - 1, -1, -1):
         if e < E - 1:
             lb = _pull(L[e + 1][None] + lb, lt)
-        smoothed[e] = _lse(la[e] + lb + lpt[None, :, None], axis=1)
+        smoothed[e] = log_sum_exp(la[e] + lb + lpt[None, :, None], axis=1)
     with np.errstate(invalid="ignore"):
         by_eps = np.exp(smoothed - log_z[None, :, None]).transpose(1, 0, 2)  # [n_eps, E, J]
     beta_avg = np.einsum("k,kej->ej", w[ok], by_eps[ok])
 
     # Filtered: P(β_e, ε | ξ_1..ξ_e) ∝ P(ε) P(ξ_1..ξ_e, β_e | ε), summed over ε.
     lj = log_prior_eps[None, :, None] + lf  # [E, n_eps, J]
-    filtered = np.exp(lj - _lse(lj, axis=(1, 2))[:, None, None]).sum(axis=1)
+    filtered = np.exp(lj - log_sum_exp(lj, axis=(1, 2))[:, None, None]).sum(axis=1)
 
     # The changing model alone (ε > 0) and the Bayes factor.
     if pos.any():
@@ -419,7 +410,7 @@ def first_last_joint(posterior: ChangingPosterior) -> np.ndarray:
     x[:, :, idx, idx] = (-np.log(J) + L[0])[None]
     for e in range(1, E):
         x = _push(x, lt) + L[e][None, :, None, :]
-    joint = np.exp(_lse(x + p._log_prior_theta[None, :, None, None], axis=1) - log_z[:, None, None])
+    joint = np.exp(log_sum_exp(x + p._log_prior_theta[None, :, None, None], axis=1) - log_z[:, None, None])
     return out + np.einsum("k,kab->ab", w, joint)
 
 
@@ -497,7 +488,8 @@ def filtered_by_action(step_ll, episode_index, hypotheses: HypothesisSet, *,
             current = int(ep[t])
         partial = partial + step[t].reshape(n_t, J)
         prior = np.full((eps.size, n_t, J), -np.log(J)) if done is None else _push(done, lt)
-        lj = log_prior_eps[:, None] + _lse(prior + partial[None] + lpt[None, :, None], axis=1)  # [ε, J]
-        z = _lse(lj, axis=(0, 1))
+        # [ε, J]
+        lj = log_prior_eps[:, None] + log_sum_exp(prior + partial[None] + lpt[None, :, None], axis=1)
+        z = log_sum_exp(lj, axis=(0, 1))
         out[t] = np.exp(lj - z).sum(axis=0) if np.isfinite(z) else np.nan
     return out
