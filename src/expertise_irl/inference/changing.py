@@ -283,6 +283,37 @@ class ChangingPosterior:
 
 
 # ----------------------------------------------------------------------------- inference
+def _smoothed(la: np.ndarray, L: np.ndarray, lt: np.ndarray, lpt: np.ndarray,
+              log_z: np.ndarray) -> np.ndarray:
+    """``[n_eps, E, J]`` P(β_e = j | Ξ, ε): the backward pass, lb[ε, θ, j] = log P(ξ_{e+1}..ξ_E |
+    β_e = j, θ, ε), met with the forward pass ``la`` (θ summed out under ``lpt``); NaN rows where
+    Z(ε) = 0."""
+    E, n_eps, n_t, J = la.shape
+    smoothed = np.empty((E, n_eps, J))
+    lb = np.zeros((n_eps, n_t, J))
+    for e in range(E - 1, -1, -1):
+        if e < E - 1:
+            lb = _pull(L[e + 1][None] + lb, lt)
+        smoothed[e] = log_sum_exp(la[e] + lb + lpt[None, :, None], axis=1)
+    with np.errstate(invalid="ignore"):
+        return np.exp(smoothed - log_z[None, :, None]).transpose(1, 0, 2)
+
+
+def _changing_alone(eps: np.ndarray, log_z: np.ndarray, theta_by_eps: np.ndarray, by_eps: np.ndarray):
+    """The changing model alone (ε > 0, a uniform prior within it) and its Bayes factor against
+    ε = 0: ``(log BF, E[ε], P(changing), θ probabilities, smoothed β)``, NaN where no ε > 0."""
+    pos = eps > 0
+    if not pos.any():
+        nan = float("nan")
+        return nan, nan, 0.0, np.full(theta_by_eps.shape[1], nan), np.full(by_eps.shape[1:], nan)
+    lzp = log_z[pos]
+    log_mean_pos = float(logsumexp(lzp) - np.log(pos.sum()))
+    log_bf = log_mean_pos - float(log_z[~pos][0])
+    wp = np.exp(lzp - logsumexp(lzp))  # P(ε | Ξ, ε > 0)
+    return (log_bf, float(wp @ eps[pos]), float(expit(log_bf)), wp @ theta_by_eps[pos],
+            np.einsum("k,kej->ej", wp, by_eps[pos]))
+
+
 def changing_posterior(
     episode_ll,
     hypotheses: HypothesisSet,
@@ -311,7 +342,6 @@ def changing_posterior(
     lpt = _check_log_prior_theta(log_prior_theta, n_t)
     E = ll.shape[0]
     n_eps = eps.size
-    pos = eps > 0
     L = ll.reshape(E, n_t, J)  # [E, θ, β]
     lt = np.stack([transition_diagonals(J, e, trend) for e in eps])[:, None]  # [n_eps, 1, 3, J]
     log_pi = -np.log(J)
@@ -340,35 +370,15 @@ def changing_posterior(
         theta_by_eps = np.exp(lpt[None] + log_zt - log_z[:, None])  # NaN rows where Z(ε) = 0
     theta_avg = w[ok] @ theta_by_eps[ok]
 
-    # Backward: lb[ε, θ, j] = log P(ξ_{e+1}..ξ_E | β_e = j, θ, ε), smoothed marginals on the way.
-    smoothed = np.empty((E, n_eps, J))
-    lb = np.zeros((n_eps, n_t, J))
-    for e in range(E - 1, -1, -1):
-        if e < E - 1:
-            lb = _pull(L[e + 1][None] + lb, lt)
-        smoothed[e] = log_sum_exp(la[e] + lb + lpt[None, :, None], axis=1)
-    with np.errstate(invalid="ignore"):
-        by_eps = np.exp(smoothed - log_z[None, :, None]).transpose(1, 0, 2)  # [n_eps, E, J]
+    by_eps = _smoothed(la, L, lt, lpt, log_z)  # [n_eps, E, J]
     beta_avg = np.einsum("k,kej->ej", w[ok], by_eps[ok])
 
     # Filtered: P(β_e, ε | ξ_1..ξ_e) ∝ P(ε) P(ξ_1..ξ_e, β_e | ε), summed over ε.
     lj = log_prior_eps[None, :, None] + lf  # [E, n_eps, J]
     filtered = np.exp(lj - log_sum_exp(lj, axis=(1, 2))[:, None, None]).sum(axis=1)
 
-    # The changing model alone (ε > 0) and the Bayes factor.
-    if pos.any():
-        lzp = log_z[pos]
-        log_mean_pos = float(logsumexp(lzp) - np.log(pos.sum()))
-        log_bf = log_mean_pos - float(log_z[~pos][0])
-        wp = np.exp(lzp - logsumexp(lzp))  # P(ε | Ξ, ε > 0): uniform prior within ε > 0
-        eps_mean = float(wp @ eps[pos])
-        theta_changing = wp @ theta_by_eps[pos]
-        beta_changing = np.einsum("k,kej->ej", wp, by_eps[pos])
-        p_changing = float(expit(log_bf))
-    else:
-        log_bf, eps_mean, p_changing = float("nan"), float("nan"), 0.0
-        theta_changing = np.full(n_t, np.nan)
-        beta_changing = np.full((E, J), np.nan)
+    log_bf, eps_mean, p_changing, theta_changing, beta_changing = _changing_alone(
+        eps, log_z, theta_by_eps, by_eps)
 
     logw_stat = (lpt[:, None] - np.log(J) + L.sum(axis=0)).ravel()
     stationary = summarise(logw_stat, hypotheses) if np.isfinite(logw_stat).any() else None

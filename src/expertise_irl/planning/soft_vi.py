@@ -12,6 +12,26 @@ Each hypothesis stops on its own tolerance (it is frozen once converged), and
 a hypothesis that does not converge within ``max_iter`` backups raises
 :class:`ConvergenceError`. Large hypothesis sets are solved in chunks so that
 memory stays bounded; chunks are padded to one shape so JAX compiles once.
+
+Start values (:func:`solve`'s ``method``; default :func:`default_method`, i.e.
+:data:`SOLVER_ENV`, else ``"levels"`` on MDPs of at least :data:`LEVELS_MIN_STATES` states and
+``"sweeps"`` on smaller ones): ``"sweeps"`` starts the pool from ``v_init`` (or zero);
+``"jumps"`` first takes greedy path jumps (:func:`.kernels.jump_start`, float64 only);
+``"levels"`` first sweeps the states in order of their distance to the goal, outwards then
+inwards (:mod:`.level_order`), which carries values along whole paths and round long loops in
+one sweep, starting (without ``v_init``) from the values of the soft walk that only moves
+towards the goal, a lower bound on the solution. Either way the pool's plain sweeps certify the
+tolerance, so the guarantee on V/β is the same; ``iterations`` counts the jumps' and level
+sweeps' cost in sweeps.
+
+Two phases (``float32_start``): a float64 solve of at least :data:`FLOAT32_START_MIN`
+hypotheses without ``v_init`` first sweeps in float32 down to float32 resolution, then finishes
+in float64 from those values. The float64 phase stops on the same contraction bound as a cold
+start, so the guarantee on V/β is unchanged. If the float32 phase does not converge (weights
+beyond float32's range, say), a cold float64 solve decides. ``iterations`` then counts the
+sweeps of both phases. Off by default: with over-relaxation a float32 sweep saves too little on
+a CPU to pay for the second phase (docs/performance.md); it may pay where float32 is much faster
+than float64.
 """
 
 from __future__ import annotations
@@ -212,35 +232,21 @@ def solve(
             rescaled for the others; ``v_init`` is then ignored.
         over_relax: let a hypothesis whose Gauss–Seidel sweeps contract at about γ² per sweep
             (a wandering person, large β) switch to successive over-relaxation, and go back to
-            plain sweeps if that does not beat them (:func:`expertise_irl.planning.kernels.solve_pool`).
-            Convergence is certified by a plain sweep either way, so the guarantee on V/β is the
-            same; on the paper's sets it halves the sweeps. ``False`` sweeps plainly throughout.
-            Not used for ``boltzmann``, whose hard values it slows (105.8 against 97.9 mean
-            sweeps on 360 paper-sim hypotheses on ``zones30``: its trials fail).
-        float32_start: for a float64 solve of at least :data:`FLOAT32_START_MIN` hypotheses
-            without ``v_init``, first sweep in float32 down to float32 resolution, then finish in
-            float64 from those values. The float64 phase stops on the same contraction bound as
-            a cold start, so the guarantee on V/β is unchanged. If the float32 phase does not
-            converge (weights beyond float32's range, say), a cold float64 solve decides.
-            ``iterations`` then counts the sweeps of both phases. Off by default: with
-            over-relaxation a float32 sweep saves too little on a CPU to pay for the second
-            phase (docs/performance.md); it may pay where float32 is much faster than float64.
+            plain sweeps if that does not beat them (:func:`.kernels.solve_pool`). A plain sweep
+            certifies convergence either way, so the guarantee on V/β is the same; on the paper's
+            sets it halves the sweeps. Not used for ``boltzmann``, whose hard values it slows
+            (105.8 against 97.9 mean sweeps on 360 paper-sim hypotheses on ``zones30``).
+        float32_start: sweep in float32 first, then finish in float64 from there (the module's
+            "Two phases"; off by default, the guarantee on V/β unchanged).
         lanes: hypotheses along the vector axis of one lane group; default: the width chosen
             for this machine (:func:`expertise_irl.planning.tuning.lane_width`; a set of fewer than
             :data:`TUNE_MIN` hypotheses does not measure one), narrowed to the largest power of
             two <= H when fewer hypotheses than that are solved on a map of at least
             :data:`.kernels.SHRINK_MIN_ROWS` states. Results agree within the tolerance whatever
             the width; only the speed depends on it.
-        method: how the pool's start values are found (default: :func:`default_method`, i.e.
-            :data:`SOLVER_ENV`, else ``"levels"`` on MDPs of at least :data:`LEVELS_MIN_STATES`
-            states and ``"sweeps"`` on smaller ones): ``"sweeps"`` starts the pool from ``v_init`` (or
-            zero); ``"jumps"`` first takes greedy path jumps (:func:`.kernels.jump_start`, float64
-            only); ``"levels"`` first sweeps the states in order of their distance to the goal,
-            outwards then inwards (:mod:`.level_order`), which carries values along whole paths
-            and round long loops in one sweep, starting (without ``v_init``) from the values of
-            the soft walk that only moves towards the goal, a lower bound on the solution.
-            Either way the pool's plain sweeps certify the tolerance, so the guarantee on V/β is
-            the same; ``iterations`` counts the jumps' and level sweeps' cost in sweeps.
+        method: how the pool's start values are found: ``"sweeps"``, ``"jumps"`` or ``"levels"``
+            (the module's "Start values"; default :func:`default_method`). The guarantee on V/β
+            is the same whichever.
 
     Raises:
         InputError: non-finite θ, β <= 0, θ/β too large, or an unknown option.
