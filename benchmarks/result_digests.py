@@ -10,11 +10,12 @@ default (an adaptive set), with a named set and ``--per-action`` on the MDP arch
 ``--method map``, with ``--method birl`` (a short chain), with ``--expertise changing``; ``demo``
 (seed 0); and ``study`` on a manifest of two people on ``crossroads`` (the README's demonstrations
 and a noisier person's). Every JSON, CSV and Markdown file they write is read back and normalised:
-what measures time (``run_time_s``, ``seconds``, a study's ``created``) and the package
-``version`` are dropped, and the rest is written as sorted, compact JSON; its SHA-256 is the
-file's digest. The record, ``benchmarks/results/result_digests.json``, holds the digests; a run
-that differs names each file whose digest changed (with ``--against`` a folder kept earlier, the
-first key that differs) and exits 1.
+what measures time (``run_time_s``, ``seconds``, a study's ``created``), the package
+``version`` and the result's ``schema`` version are dropped, and the rest is written as sorted,
+compact JSON; its SHA-256 is the file's digest. The record,
+``benchmarks/results/result_digests.json``, holds the digests; a run that differs names each file
+whose digest changed (with ``--against`` a folder kept earlier, the first key that differs) and
+exits 1.
 
 Floats are compared exactly (the commands are deterministic on one machine; a different CPU or
 JAX version may change the last bits of some, and the record is then re-taken there).
@@ -56,7 +57,7 @@ COMMANDS: list[list[str]] = [
 MANIFEST = "participant,map,demos\nP1,crossroads,demos.csv\nP2,crossroads,demos2.csv\n"
 
 #: Keys that measure time or name the package's version, dropped wherever they appear.
-TIMING_KEYS = frozenset({"version", "run_time_s", "seconds", "created"})
+TIMING_KEYS = frozenset({"version", "schema", "run_time_s", "seconds", "created"})
 
 
 def normalise(doc):

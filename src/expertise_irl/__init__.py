@@ -33,6 +33,8 @@ _EXPORTS = {
     "map_estimate": ".inference.gradient", "MAPResult": ".inference.gradient",
     "nuts_posterior": ".inference.nuts", "NUTSResult": ".inference.nuts",
     "TabularMDP": ".mdp",
+    "OptionError": ".options", "infer": ".pipeline", "prepare": ".pipeline",
+    "Result": ".result", "read_result": ".results", "write_result": ".results",
     "cosine_similarity": ".metrics", "expertise_distance": ".metrics", "policy_regret": ".metrics",
     "SoftSolution": ".planning.soft_vi", "solve": ".planning.soft_vi",
     "ZoneMap": ".worlds.zones", "generate_map": ".worlds.zones", "load_bundled": ".worlds.zones",
@@ -53,6 +55,8 @@ __all__ = [
     "MAPResult",
     "NUTSResult",
     "OnlineEstimator",
+    "OptionError",
+    "Result",
     "SoftSolution",
     "TabularMDP",
     "Trajectories",
@@ -64,6 +68,7 @@ __all__ = [
     "expertise_group",
     "extended_birl",
     "generate_map",
+    "infer",
     "load_bundled",
     "load_map",
     "map_estimate",
@@ -71,11 +76,14 @@ __all__ = [
     "nuts_posterior",
     "parse_map",
     "policy_regret",
+    "prepare",
     "read_demos_csv",
+    "read_result",
     "simulate",
     "solve",
     "theta_grid",
     "write_demos_csv",
+    "write_result",
 ]
 
 
@@ -108,5 +116,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .mdp import TabularMDP
     from .metrics import cosine_similarity, expertise_distance, policy_regret
     from .models import MODELS
+    from .options import OptionError
+    from .pipeline import infer, prepare
     from .planning.soft_vi import SoftSolution, solve
+    from .result import Result
+    from .results import read_result, write_result
     from .worlds.zones import ZoneMap, generate_map, load_bundled, load_map, parse_map

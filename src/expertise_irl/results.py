@@ -1,6 +1,9 @@
 """Result documents (JSON), written and read here, and safe output files.
 
-A discrete-set result holds ``beta_hat``, ``theta_hat``, the MAP hypothesis, the
+The typed form of a result is :class:`~expertise_irl.result.Result`; the functions here build its
+document (:func:`discrete_result`, :func:`continuous_result`), write it (:func:`write_result`) and
+read it back (:func:`read_result`; :func:`load_result` gives the checked document itself). A
+discrete-set result holds ``beta_hat``, ``theta_hat``, the MAP hypothesis, the
 marginals, every hypothesis with its ``log_likelihood``, ``log_posterior`` and
 ``probability``, the settings used and the package version. A log-likelihood of −∞
 (a hypothesis that cannot produce an observed action) is written as ``null``.
@@ -23,6 +26,7 @@ from . import __version__
 from .atomic import atomic_open
 from .errors import InputError, read_text
 from .hypotheses import expertise_group
+from .result import METHODS, SAMPLED, SCHEMA_VERSION, Result, Samples, check_document
 
 if TYPE_CHECKING:
     from .inference.belief import DiscreteBelief, Trace
@@ -49,6 +53,7 @@ def discrete_result(belief: DiscreteBelief, *, feature_names, settings: dict[str
     lp, ll, p = belief.log_posterior, belief.log_likelihood, belief.probabilities
     beta_hat = belief.mean_beta
     doc: dict[str, Any] = {
+        "schema": SCHEMA_VERSION,
         "version": __version__,
         "method": "discrete",
         "feature_names": list(feature_names),
@@ -182,6 +187,7 @@ def continuous_result(method_out: dict[str, Any], *, method: str, feature_names,
     draws = out.pop("draws", None)
     beta_hat = float(out["beta_hat"])
     doc: dict[str, Any] = {
+        "schema": SCHEMA_VERSION,
         "version": __version__,
         "method": method,
         "feature_names": list(feature_names),
@@ -205,23 +211,50 @@ def continuous_result(method_out: dict[str, Any], *, method: str, feature_names,
             doc["samples"] = {"chain": [int(c) for c in chain], "beta": _vec(beta),
                               "theta": [_vec(t) for t in theta]}
         else:
-            with atomic_open(samples_path, "w", encoding="utf-8", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(["chain", "draw", "beta", *feature_names])
-                draw = np.zeros(len(beta), dtype=int)
-                for c in np.unique(chain):
-                    draw[chain == c] = np.arange(int(np.sum(chain == c)))
-                for c, d, b, t in zip(chain, draw, beta, theta, strict=True):
-                    w.writerow([int(c), int(d), repr(float(b)), *(repr(float(x)) for x in t)])
-            doc["samples"] = str(samples_path)
+            doc["samples"] = str(write_samples_csv(samples_path, chain, beta, theta, feature_names))
     return doc
 
 
-# ----------------------------------------------------------------------- reading
-#: The methods a result can come from, and those whose result holds posterior draws.
-METHODS = ("discrete", "birl", "map", "nuts")
-SAMPLED = ("birl", "nuts")
+def write_samples_csv(path: str | Path, chain, beta, theta, feature_names) -> Path:
+    """Draws as ``chain,draw,beta,<feature names>`` (one row each, full precision), atomically."""
+    chain = np.asarray(chain)
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["chain", "draw", "beta", *feature_names])
+        draw = np.zeros(len(beta), dtype=int)
+        for c in np.unique(chain):
+            draw[chain == c] = np.arange(int(np.sum(chain == c)))
+        for c, d, b, t in zip(chain, draw, beta, theta, strict=True):
+            w.writerow([int(c), int(d), repr(float(b)), *(repr(float(x)) for x in t)])
+    return Path(path)
 
+
+def write_result(path: str | Path, result: Result, *, samples_path: str | Path | None = None) -> Result:
+    """Write ``result`` as strict JSON (:func:`write_json`); draws beyond :data:`INLINE_DRAWS` go to
+    ``samples_path`` (default :func:`samples_path_for` ``path``) and the JSON names that file.
+
+    Returns:
+        The result as written (its ``samples`` the CSV's path when they went there).
+    """
+    s = result.samples
+    if isinstance(s, Samples) and len(s.beta) > INLINE_DRAWS and np.ndim(s.theta) == 2:
+        where = write_samples_csv(samples_path or samples_path_for(path), s.chain, s.beta, s.theta,
+                                  result.feature_names)
+        result = result.replace(samples=str(where))
+    write_json(path, result.to_json())
+    return result
+
+
+def read_result(path: str | Path) -> Result:
+    """The :class:`~expertise_irl.result.Result` in ``path`` (written by any version of the package).
+
+    Raises:
+        InputError: naming ``path`` if it is not JSON or not a result.
+    """
+    return Result.from_json(load_result(path), path)
+
+
+# ----------------------------------------------------------------------- reading
 
 def is_number(x) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
@@ -244,9 +277,7 @@ def load_result(path: str | Path) -> dict[str, Any]:
 
 def check_result(doc, path: str | Path) -> None:
     """Raise :class:`InputError` naming ``path`` unless ``doc`` is a result document."""
-    if not isinstance(doc, dict) or "method" not in doc:
-        raise InputError(f"{path}: not an expertise-irl result (no 'method'; write one with "
-                         "`expertise-irl infer`)")
+    check_document(doc, path)
     method = doc["method"]
     if method not in METHODS:
         raise InputError(f"{path}: unknown method {method!r} (expected one of {', '.join(METHODS)})")

@@ -271,7 +271,7 @@ def test_a_time_cap_stops_with_a_warning(mdp, person, tmp_path):
                settings=Refinement(max_seconds=1e-9))
     assert "--max-seconds" in r.record["stop_reason"] and len(r.record["rounds"]) == 1
     assert len(r.warnings) == 1 and "the posterior is the best so far" in r.warnings[0]
-    with pytest.raises(InputError, match="--max-seconds must be a finite number > 0"):
+    with pytest.raises(InputError, match=r"^max_seconds must be a finite number > 0"):
         DiscreteOptions(max_seconds=0.0)
 
 

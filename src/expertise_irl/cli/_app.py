@@ -27,6 +27,7 @@ from typer.core import TyperArgument, TyperGroup, TyperOption
 from .. import __version__
 from ..errors import ConvergenceError, InputError, os_reason, plural
 from ..numerics import enable_float64
+from ..options import OptionError, flag
 
 
 class _OneLineErrors(TyperGroup):
@@ -177,6 +178,8 @@ def handles_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
+        except OptionError as exc:  # the library names the field; the command line, its flag
+            _fail(exc.message(flag))
         except InputError as exc:
             _fail(str(exc))
         except ConvergenceError as exc:

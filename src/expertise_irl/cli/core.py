@@ -12,6 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import InputError, plural
+from ..result import Result
 from ._app import (
     GoalRewardOption,
     ModelOption,
@@ -28,7 +29,6 @@ from ._app import (
     _solve_progress,
     _warn,
     app,
-    goal_reward_mode_of,
     handles_errors,
     load_map,
     out,
@@ -61,8 +61,9 @@ def demo(
 ) -> None:
     """Simulate a person on a map, infer their expertise and preferences, and report."""
     from ..experiments.demo import demo_outputs, run_demo
+    from ..pipeline import discrete_result
     from ..plots.maps import render_demo_png
-    from ..results import check_writable, discrete_result, write_json
+    from ..results import check_writable, write_result
     from ..worlds.grid import check_goal_reward_mode
     from ..worlds.zones import resolve_map
 
@@ -105,21 +106,20 @@ def demo(
     out.print(table)
     b = run.belief
     render_demo_png(png, run, title=f"seed {seed}: β*={run.beta_true:g}, β̂={b.mean_beta:.3g}")
-    doc = discrete_result(
+    result = discrete_result(
         b, feature_names=names,
         settings={"command": "demo", "seed": seed, "map": run.zone_map.name, "episodes": episodes,
                   "k": k, "thetas": "paper-sim (sampled k)", "betas": "paper-sim", "beta": beta,
                   "model": model,
                   "gamma": run.mdp.gamma, "goal_bonus": run.zone_map.goal_bonus,
                   "goal_reward_mode": run.zone_map.goal_reward_mode},
-        data={"episodes": run.trajectories.n_episodes, "actions": len(run.trajectories)},
-    )
-    doc["truth"] = {"theta": s["theta_true"], "beta": s["beta_true"], "group": s["group_true"],
-                    "probability": s["truth_probability"]}
-    doc["metrics"] = {k_: s[k_] for k_ in ("expertise_distance", "cosine_similarity", "policy_regret")}
-    doc["data"]["capped_episodes"] = _report_capped(run.trajectories, run.mdp, run.max_steps, model)
-    doc["run_time_s"] = elapsed
-    write_json(js, doc)
+        data={"episodes": run.trajectories.n_episodes, "actions": len(run.trajectories),
+              "capped_episodes": _report_capped(run.trajectories, run.mdp, run.max_steps, model)},
+        extra={"truth": {"theta": s["theta_true"], "beta": s["beta_true"], "group": s["group_true"],
+                         "probability": s["truth_probability"]},
+               "metrics": {k_: s[k_] for k_ in ("expertise_distance", "cosine_similarity", "policy_regret")}},
+        run_time_s=elapsed)
+    write_result(js, result)
     _say(f"wrote {png} and {js} ({elapsed:.1f} s)")
 
 
@@ -299,10 +299,10 @@ def infer(
     every method reproducible. Convergence warnings go to stderr and to the result's
     diagnostics.warnings.
     """
-    from ..demos.csv_io import read_demos_csv
-    from ..inference.methods import document, get_method
-    from ..inference.misspecification import add_to_result, check_level, posterior_of_run, refit_of_run
-    from ..results import INLINE_DRAWS, check_writable, samples_path_for, write_json
+    from ..inference.methods import get_method
+    from ..inference.misspecification import check_level
+    from ..pipeline import as_demos, prepare
+    from ..results import INLINE_DRAWS, check_writable, samples_path_for, write_result
 
     chosen = get_method(method)
     check_level(check)
@@ -310,55 +310,49 @@ def infer(
     inputs = [demos, *_map_files(map_spec), mdp_path]
     check_writable(out_path, force=force, inputs=inputs)
     opts = chosen.options_from(ctx.params)
-    mdp, zone_map = _load_mdp(map_spec, mdp_path, goal_reward)
-    trajs = read_demos_csv(demos, mdp)
+    world = _world(map_spec, mdp_path, goal_reward)
+    data = as_demos(demos, world)
     prepare_solver(measure=chosen.measure_lanes)  # the others solve one hypothesis at a time
     samples_path = samples_path_for(out_path)
     if opts.max_draws > INLINE_DRAWS:
         check_writable(samples_path, force=force, inputs=inputs)
-    setup = chosen.setup(mdp, opts, seed, _note)  # notes (the prior, a capped set) before the bar
-    with _progress(chosen.unit) as bar:
-        run = chosen.run(mdp, trajs, opts, seed, progress=_solve_progress(bar, chosen.progress_label(opts)),
-                         setup=setup)
-    settings = {"command": "infer", "method": method, **_source(map_spec, mdp_path, zone_map, demos),
-                "seed": seed, "goal_bonus": zone_map.goal_bonus if zone_map is not None else None,
-                "goal_reward_mode": goal_reward_mode_of(mdp, zone_map), "gamma": mdp.gamma}
-    doc = document(run, feature_names=mdp.feature_names, settings=settings,
-                   data={"episodes": trajs.n_episodes, "actions": len(trajs)}, samples_path=samples_path)
-    doc["settings"]["check"] = check
-    t0 = time.perf_counter()
-    add_to_result(doc, [(mdp, trajs)], posterior_of_run(run, mdp), check=check, model=run.settings["model"],
-                  seed=seed, refit=refit_of_run(run, mdp, trajs, opts))
-    write_json(out_path, doc)
-    _report_result(doc, out_path, len(trajs), check_s=time.perf_counter() - t0)
+    # notes (the prior, a capped set) before the bar
+    job = prepare(world, data, method, options=opts, seed=seed, check=check, note=_note, command="infer")
+    with _progress(job.unit) as bar:
+        result = job.run(progress=_solve_progress(bar, job.progress_label))
+    result = write_result(out_path, result, samples_path=samples_path)
+    _report_result(result, out_path, len(data.trajectories), check_s=result.timing.get("checks_s"))
 
 
-def _source(map_spec, mdp_path, zone_map, demos) -> dict:
-    """The inputs of a result: the MDP and the demonstrations, each with its digest."""
+def _world(map_spec, mdp_path, goal_reward):
+    """The task of MAP or --mdp with its name and digest, as the result records them."""
+    from ..pipeline import World
     from ..results import file_digest, map_digest
 
-    return {"mdp": str(mdp_path) if mdp_path else str(map_spec),
-            "mdp_digest": file_digest(mdp_path) if mdp_path else map_digest(zone_map),
-            "demos": str(demos), "demos_digest": file_digest(demos)}
+    mdp, zone_map = _load_mdp(map_spec, mdp_path, goal_reward)
+    if mdp_path is not None:
+        return World(mdp, None, str(mdp_path), file_digest(mdp_path))
+    return World(mdp, zone_map, str(map_spec), map_digest(zone_map))
 
 
-def _report_result(doc: dict, out_path: Path, n_actions: int, check_s: float | None = None) -> None:
+def _report_result(result: Result, out_path: Path, n_actions: int, check_s: float | None = None) -> None:
     """The estimate, its interval or impossible hypotheses, the misspecification verdict, the warnings
     and what was written (``check_s``: the seconds the checks took, beside the inference's)."""
-    names = doc["feature_names"]
-    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(names, doc["theta_hat"], strict=True))
-    _say(f"β̂ = {doc['beta_hat']:.4g} ({doc['expertise_group']} expertise), θ̂ = [{theta_str}]")
-    n_hypotheses = doc["settings"].get("n_hypotheses")
-    if doc.get("n_impossible"):
-        _note(f"{doc['n_impossible']} of {n_hypotheses} hypotheses cannot produce the demonstrations")
-    ci = doc.get("credible_intervals")
+    names, est = result.feature_names, result.estimate
+    theta_str = ", ".join(f"{n}={v:.3f}" for n, v in zip(names, est.theta_hat, strict=True))
+    _say(f"β̂ = {est.beta_hat:.4g} ({est.expertise_group} expertise), θ̂ = [{theta_str}]")
+    n_hypotheses = result.settings.n_hypotheses
+    if result.posterior is not None and result.posterior.n_impossible:
+        _note(f"{result.posterior.n_impossible} of {n_hypotheses} hypotheses cannot produce the "
+              "demonstrations")
+    ci = est.credible_intervals
     if ci and ci["beta"] is None:
         _say("90% credible interval of β: none (a chain did not move in β; see the warning)")
     elif ci:
-        kind = "Laplace 90% interval" if doc["method"] == "map" else "90% credible interval"
+        kind = "Laplace 90% interval" if result.method == "map" else "90% credible interval"
         _say(f"{kind} of β: [{ci['beta'][0]:.4g}, {ci['beta'][1]:.4g}]")
-    if doc.get("changing"):
-        ch, curve, tr = doc["changing"], doc["expertise_by_episode"], doc["trend"]
+    if result.changing is not None and result.changing.evidence:
+        ch, curve, tr = result.changing.evidence, result.changing.by_episode, result.changing.trend
         bf = ch["log_bayes_factor"]
         if bf is not None:
             _say(f"changing expertise: log Bayes factor {bf:.2f} against one β (P(changing) = "
@@ -367,14 +361,14 @@ def _report_result(doc: dict, out_path: Path, n_actions: int, check_s: float | N
         else:
             _say(f"learning curve: log β_e = log β_0 + λ·{tr['g']}, β̂_0 = {tr['beta0']:.3g}, λ̂ = "
                  f"{tr['slope']:.3g} (β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g})")
-    mis = doc["diagnostics"].get("misspecification")
+    mis = result.misspecification
     if mis:
-        _say(f"check ({mis['check']}): {mis['verdict']} ({mis['reason']})")
-    for w in doc["diagnostics"].get("warnings", []):
+        _say(f"check ({mis.check}): {mis.verdict} ({mis.reason})")
+    for w in result.warnings:
         _warn(w)
-    extra = f" and {doc['samples']}" if isinstance(doc.get("samples"), str) else ""
-    what = f"{n_hypotheses} hypotheses" if doc["method"] == "discrete" else doc["method"]
-    took = f"{doc['run_time_s']:.1f} s" + (f", checks {check_s:.1f} s" if mis and check_s is not None else "")
+    extra = f" and {result.samples}" if isinstance(result.samples, str) else ""
+    what = f"{n_hypotheses} hypotheses" if result.method == "discrete" else result.method
+    took = f"{result.run_time_s:.1f} s" + (f", checks {check_s:.1f} s" if mis and check_s is not None else "")
     _say(f"wrote {out_path}{extra} ({what}, {plural(n_actions, 'action')}, {took})")
 
 

@@ -44,9 +44,11 @@ def _options(thetas: str | None, betas: str | None, refine: bool | None, experti
 
 def _set_settings(opts, hyp) -> dict:
     """The hypothesis set's entries of the result's settings (those of ``infer``)."""
-    kind = "adaptive" if opts.refines else "fixed"
-    return {"thetas": opts.thetas or ("adaptive" if opts.refines else "paper-real"),
-            "betas": opts.betas or ("adaptive" if opts.refines else "paper-sim"), "hypotheses": kind,
+    from ..options import ADAPTIVE, DEFAULT_BETAS, DEFAULT_THETAS
+
+    kind = ADAPTIVE if opts.refines else "fixed"
+    return {"thetas": opts.thetas or (ADAPTIVE if opts.refines else DEFAULT_THETAS.value),
+            "betas": opts.betas or (ADAPTIVE if opts.refines else DEFAULT_BETAS.value), "hypotheses": kind,
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform"}
 
 

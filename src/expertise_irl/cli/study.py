@@ -164,8 +164,8 @@ def study(
     compared = parse_models(models) if models is not None else ()
     named = thetas is not None or betas is not None
     opts = StudyOptions(
-        thetas=thetas if thetas is not None else "paper-real",
-        betas=betas if betas is not None else "auto",
+        thetas=thetas if thetas is not None else StudyOptions.thetas,
+        betas=betas if betas is not None else StudyOptions.betas,
         method=method,
         rate=rate,
         max_dt=max_dt,

@@ -9,8 +9,10 @@ Eq. 13), ``birl`` (Algorithm 1, box or simplex), ``map`` (L-BFGS on the exact gr
 
 ``options_from`` takes the options a method reads, by the names of its options dataclass's
 fields, which are the command line's option names; the options validate themselves when they
-are made (:class:`~expertise_irl.errors.InputError` naming the flag). ``run`` returns a
-:class:`MethodRun`: the method's own result and the fields of the result document,
+are made (an :class:`~expertise_irl.options.OptionError` naming the field; the command line writes
+it as the flag). Each :class:`Method` meets the :class:`InferenceMethod` protocol; its choices
+(``expertise``, ``variant``, ``prior``, ``model``) are the enums of :mod:`expertise_irl.options`.
+``run`` returns a :class:`MethodRun`: the method's own result and the fields of the result document,
 ``theta_hat``, ``beta_hat``, the ``map`` point, ``samples`` (as ``draws``) and 90%
 ``credible_intervals`` for the samplers, ``diagnostics`` and ``run_time_s``; :func:`document`
 writes them with :mod:`expertise_irl.results`. ``fit`` alone runs the method without
@@ -25,12 +27,22 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, fields
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
 from ..errors import InputError
-from ..models import DEFAULT_MODEL, check_model
+from ..models import DEFAULT_MODEL, MODELS
+from ..options import (
+    ADAPTIVE,
+    DEFAULT_BETAS,
+    DEFAULT_EXPERTISE,
+    DEFAULT_THETAS,
+    Expertise,
+    OptionError,
+    choose,
+)
+from ..options import Method as MethodName
 from .priors import BETA_RANGE, DEFAULT_PRIOR, PRIORS
 
 CREDIBLE = 0.9
@@ -43,15 +55,19 @@ Progress = Callable[[int, int], None] | None
 Note = Callable[[str], None] | None
 
 
-#: ``--expertise``: one β for every episode (the paper's), or a β per episode that may change.
-EXPERTISE = ("stationary", "changing")
+#: ``expertise``: one β for every episode (the paper's), or a β per episode that may change.
+EXPERTISE = tuple(e.value for e in Expertise)
 
 
 # ----------------------------------------------------------------------------- options
+def _one_of(field: str, value: str, choices) -> None:
+    if value not in choices:
+        raise OptionError(f"{{{field}}} must be one of {', '.join(choices)}, got {value!r}", field)
+
+
 def _check_prior_and_model(prior: str, model: str) -> None:
-    if prior not in PRIORS:
-        raise InputError(f"--prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-    check_model(model, "--model")
+    _one_of("prior", prior, PRIORS)
+    _one_of("model", model, MODELS)
 
 
 def _check_concentration(prior: str, concentration: float | None) -> None:
@@ -60,7 +76,11 @@ def _check_concentration(prior: str, concentration: float | None) -> None:
     try:
         concentration_of(prior, concentration)
     except InputError as e:
-        raise InputError(f"--{e}") from None
+        raise OptionError("{concentration}" + str(e).removeprefix("concentration"), "concentration") from None
+
+
+def _check_expertise(value: str) -> None:
+    choose(Expertise, value, "expertise")
 
 
 @dataclass(frozen=True)
@@ -74,23 +94,24 @@ class DiscreteOptions:
     tol: float = 1e-8  # soft value iteration tolerance (nats)
     chunk_size: int | None = None  # hypotheses in flight in the solver
     model: str = DEFAULT_MODEL
-    expertise: str = "stationary"  # or "changing": β_e per episode (inference.changing)
+    expertise: str = DEFAULT_EXPERTISE  # or "changing": β_e per episode (inference.changing)
     refine: bool | None = None  # refine the set (inference.adaptive); None: when no set is named
     max_hypotheses: int = 20_000  # refinement's cap on hypotheses solved
     max_seconds: float | None = None  # refinement's time cap: no round starts after it
 
     def __post_init__(self) -> None:
         if not (0 < self.tol <= MAX_TOL):
-            raise InputError(f"--tol must be > 0 and at most {MAX_TOL:g} nats, got {self.tol:g}")
-        if self.expertise not in EXPERTISE:
-            raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
+            raise OptionError(f"{{tol}} must be > 0 and at most {MAX_TOL:g} nats, got {self.tol:g}", "tol")
+        _check_expertise(self.expertise)
         if self.max_hypotheses < 1:
-            raise InputError(f"--max-hypotheses must be >= 1, got {self.max_hypotheses}")
+            raise OptionError(f"{{max_hypotheses}} must be >= 1, got {self.max_hypotheses}", "max_hypotheses")
         if self.max_seconds is not None and not (math.isfinite(self.max_seconds) and self.max_seconds > 0):
-            raise InputError(f"--max-seconds must be a finite number > 0, got {self.max_seconds:g}")
-        if self.refine and self.expertise == "changing":
-            raise InputError("--refine follows the one-β posterior and cannot be used with --expertise "
-                             "changing, whose β grid must span every episode's β (name it with --betas)")
+            raise OptionError(f"{{max_seconds}} must be a finite number > 0, got {self.max_seconds:g}",
+                              "max_seconds")
+        if self.refine and self.expertise == Expertise.CHANGING:
+            raise OptionError("{refine} follows the one-β posterior and cannot be used with {expertise} "
+                              "changing, whose β grid must span every episode's β (name it with {betas})",
+                              "refine", "expertise", "betas")
 
     max_draws = 0
 
@@ -105,7 +126,7 @@ class DiscreteOptions:
         every episode (the refinement follows the one-β posterior, while a changing β's grid must
         span every episode's β)."""
         if self.refine is None:
-            return not self.named and self.expertise == "stationary"
+            return not self.named and self.expertise == Expertise.STATIONARY
         return self.refine
 
     def hypotheses(self, n_features: int, seed: int = 0, note: Note = None):
@@ -118,16 +139,16 @@ class DiscreteOptions:
                 from .adaptive import start_set
 
                 return start_set(n_features)
-            return HypothesisSet(resolve_thetas("paper-real", n_features), resolve_betas("paper-sim"))
-        th = resolve_thetas(self.thetas or "paper-real", n_features)
+            return HypothesisSet(resolve_thetas(DEFAULT_THETAS, n_features), resolve_betas(DEFAULT_BETAS))
+        th = resolve_thetas(self.thetas or DEFAULT_THETAS, n_features)
         k = self.sample_thetas
         if k is not None:
             if k > len(th) and note is not None:
-                name = self.thetas or "paper-real"
+                name = self.thetas or DEFAULT_THETAS
                 note(f"--sample-thetas {k} exceeds the {len(th)} directions of --thetas {name}; "
                      "using all of them")
             th = sample_thetas(th, min(k, len(th)), np.random.default_rng(seed))
-        return HypothesisSet(th, resolve_betas(self.betas or "paper-sim"))
+        return HypothesisSet(th, resolve_betas(self.betas or DEFAULT_BETAS))
 
 
 @dataclass(frozen=True)
@@ -144,18 +165,18 @@ class BIRLOptions:
     def __post_init__(self) -> None:
         from .birl import VARIANTS
 
-        for name, x in (("--delta", self.delta), ("--beta-step", self.beta_step)):
+        for name, x in (("delta", self.delta), ("beta_step", self.beta_step)):
             if not (math.isfinite(x) and x > 0):
-                raise InputError(f"{name} must be a finite number > 0, got {x:g}")
+                raise OptionError(f"{{{name}}} must be a finite number > 0, got {x:g}", name)
         n = 1.0 / self.delta
         if abs(n - round(n)) > 1e-9 * max(1.0, n):
-            raise InputError(f"--delta must divide 1 (1/--delta an integer), got {self.delta:g}")
+            raise OptionError(f"{{delta}} must divide 1 (1/{{delta}} an integer), got {self.delta:g}",
+                              "delta")
         lo, hi = BETA_RANGE
         if lo + self.beta_step > hi:
-            raise InputError(f"--beta-step {self.beta_step:g} leaves a single β in the prior's range "
-                             f"[{lo:g}, {hi:g}]")
-        if self.variant not in VARIANTS:
-            raise InputError(f"--variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
+            raise OptionError(f"{{beta_step}} {self.beta_step:g} leaves a single β in the prior's range "
+                              f"[{lo:g}, {hi:g}]", "beta_step")
+        _one_of("variant", self.variant, VARIANTS)
         _check_prior_and_model(self.prior, self.model)
 
     @property
@@ -170,14 +191,13 @@ class MAPOptions:
     starts: int = 4
     prior: str = DEFAULT_PRIOR
     model: str = DEFAULT_MODEL
-    expertise: str = "stationary"  # or "changing": also the learning curve (inference.trend)
+    expertise: str = DEFAULT_EXPERTISE  # or "changing": also the learning curve (inference.trend)
     concentration: float | None = None  # θ ~ Dirichlet(α); None: the prior's (priors.concentration_of)
 
     def __post_init__(self) -> None:
         _check_prior_and_model(self.prior, self.model)
         _check_concentration(self.prior, self.concentration)
-        if self.expertise not in EXPERTISE:
-            raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
+        _check_expertise(self.expertise)
 
     max_draws = 0
 
@@ -191,14 +211,13 @@ class NUTSOptions:
     samples: int = 500  # draws per chain
     prior: str = DEFAULT_PRIOR
     model: str = DEFAULT_MODEL
-    expertise: str = "stationary"  # or "changing": also the learning curve's posterior (inference.trend)
+    expertise: str = DEFAULT_EXPERTISE  # or "changing": also the learning curve's posterior (inference.trend)
     concentration: float | None = None  # θ ~ Dirichlet(α); None: the prior's (priors.concentration_of)
 
     def __post_init__(self) -> None:
         _check_prior_and_model(self.prior, self.model)
         _check_concentration(self.prior, self.concentration)
-        if self.expertise not in EXPERTISE:
-            raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {self.expertise!r}")
+        _check_expertise(self.expertise)
 
     @property
     def max_draws(self) -> int:
@@ -214,6 +233,19 @@ class DiscreteFit(NamedTuple):
     trace_index: tuple[np.ndarray, np.ndarray]  # episode and step of each traced action
     changing: Any = None  # --expertise changing: (ChangingPosterior, episode labels)
     refined: Any = None  # the refined set's record and warnings (inference.adaptive.Refined)
+
+    @property
+    def result(self) -> DiscreteFit:
+        """The fit itself (what :attr:`MethodRun.result` holds)."""
+        return self
+
+
+class ContinuousFit(NamedTuple):
+    """A continuous method's result (``BIRLResult``, ``MAPResult`` or ``NUTSResult``) and, with
+    ``expertise="changing"`` (map, nuts), the learning curve of :mod:`.trend` beside it."""
+
+    result: Any
+    curve: dict[str, Any] | None = None
 
 
 def _setup_discrete(mdp, opts: DiscreteOptions, seed: Seed, note: Note = None):
@@ -236,7 +268,7 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
     post = start.update(trajs, per_action=opts.per_action)
     trace = start.trace(trajs) if opts.per_action else None
     changing = None
-    if opts.expertise == "changing":
+    if opts.expertise == Expertise.CHANGING:
         from .changing import changing_posterior, episode_log_likelihoods
 
         cp = changing_posterior(episode_log_likelihoods(start.log_policy, trajs), hyp)
@@ -284,7 +316,7 @@ def _fit_birl(mdp, trajs, opts: BIRLOptions, seed: Seed, progress: Progress = No
                       prior=opts.prior, model=opts.model)
     if mdp.has_offset:  # (θ/‖θ‖₁, β/‖θ‖₁) is another policy once a fixed reward is part of R
         r = dataclasses.replace(r, mean_theta_normalized=None, mean_beta_normalized=None)
-    return r
+    return ContinuousFit(r)
 
 
 def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None, setup=None):
@@ -294,11 +326,12 @@ def _fit_map(mdp, trajs, opts: MAPOptions, seed: Seed, progress: Progress = None
     as_tasks(mdp, trajs)
     r = map_estimate(mdp, trajs, n_starts=opts.starts, rng=np.random.default_rng(seed), progress=progress,
                      prior=opts.prior, model=opts.model, concentration=opts.concentration)
-    if opts.expertise == "changing":  # the one-β estimate stays the result's; the curve beside it
+    if opts.expertise == Expertise.CHANGING:  # the one-β estimate stays the result's; the curve beside it
         from .trend import fit_trend
 
-        return r, fit_trend(mdp, trajs, opts, seed)  # several tasks: their episodes in turn
-    return r
+        # several tasks: their episodes in turn
+        return ContinuousFit(r, fit_trend(mdp, trajs, opts, seed))
+    return ContinuousFit(r)
 
 
 def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = None, setup=None):
@@ -309,11 +342,12 @@ def _fit_nuts(mdp, trajs, opts: NUTSOptions, seed: Seed, progress: Progress = No
     r = nuts_posterior(mdp, trajs, num_warmup=opts.warmup, num_samples=opts.samples,
                        num_chains=opts.chains, seed=seed, progress=progress, prior=opts.prior,
                        model=opts.model, concentration=opts.concentration)
-    if opts.expertise == "changing":  # the one-β posterior stays the result's; the curve beside it
+    if opts.expertise == Expertise.CHANGING:  # the one-β posterior stays the result's; the curve beside it
         from .trend import fit_trend_nuts
 
-        return r, fit_trend_nuts(mdp, trajs, opts, seed)  # several tasks: their episodes in turn
-    return r
+        # several tasks: their episodes in turn
+        return ContinuousFit(r, fit_trend_nuts(mdp, trajs, opts, seed))
+    return ContinuousFit(r)
 
 
 # ----------------------------------------------------------------------------- descriptions
@@ -354,10 +388,11 @@ def _with_curve(out: dict[str, Any], curve: dict[str, Any], no_evidence: str) ->
     return out
 
 
-def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
+def _describe_birl(fit: ContinuousFit, opts: BIRLOptions, names) -> dict[str, Any]:
     from .diagnostics import birl_warnings, chain_statistics, withhold_intervals
     from .gradient import credible_intervals
 
+    r = fit.result
     theta, beta = r.kept_theta, r.kept_beta
     # one chain: R-hat compares its halves
     stats = chain_statistics(theta, beta, halves=True, feature_names=names)
@@ -382,32 +417,33 @@ def _describe_birl(r, opts: BIRLOptions, names) -> dict[str, Any]:
     }
 
 
-def _describe_map(r, opts: MAPOptions, names) -> dict[str, Any]:
+def _describe_map(fit: ContinuousFit, opts: MAPOptions, names) -> dict[str, Any]:
     from .diagnostics import map_description
 
-    if isinstance(r, tuple):  # --expertise changing: the one-β MAP and the learning curve
-        r, curve = r
-        out = _describe_map(r, opts, names)
-        out = _with_curve(out, curve, "MAP gives no evidence: see trend.slope, or use --method discrete "
-                                      "for the Bayes factor")
-        out["trend"]["log_posterior"] = curve["diagnostics"]["log_posterior"]
-        return out
-
-    return {  # the mode, its Laplace intervals (docs/model.md: why the mode)
+    r, curve = fit
+    out = {  # the mode, its Laplace intervals (docs/model.md: why the mode)
         "theta_hat": r.theta.tolist(), "beta_hat": r.beta,
         "map": {"theta": r.theta.tolist(), "beta": r.beta, "log_posterior": r.log_posterior},
         **map_description(r, opts.starts, PRIORS[opts.prior].beta_range),
     }
+    if curve is not None:  # --expertise changing: the one-β MAP and the learning curve
+        out = _with_curve(out, curve, "MAP gives no evidence: see trend.slope, or use --method discrete "
+                                      "for the Bayes factor")
+        out["trend"]["log_posterior"] = curve["diagnostics"]["log_posterior"]
+    return out
 
 
-def _describe_nuts(r, opts: NUTSOptions, names) -> dict[str, Any]:
+def _describe_nuts(fit: ContinuousFit, opts: NUTSOptions, names) -> dict[str, Any]:
+    r, curve = fit
+    out = _describe_nuts_posterior(r, names)
+    if curve is not None:  # --expertise changing: the one-β posterior and the learning curve
+        out = _with_curve(out, curve, "NUTS samples no evidence for the model choice: see trend.p_falls "
+                                      "(the share of draws with λ < 0), or use --method discrete")
+    return out
+
+
+def _describe_nuts_posterior(r, names) -> dict[str, Any]:
     from .diagnostics import nuts_warnings, withhold_intervals
-
-    if isinstance(r, tuple):  # --expertise changing: the one-β posterior and the learning curve
-        r, curve = r
-        out = _describe_nuts(r, opts, names)
-        return _with_curve(out, curve, "NUTS samples no evidence for the model choice: see trend.p_falls "
-                                       "(the share of draws with λ < 0), or use --method discrete")
 
     C, D, K = r.theta.shape
     theta, beta = r.theta.reshape(-1, K), r.beta.reshape(-1)
@@ -432,8 +468,8 @@ def _describe_nuts(r, opts: NUTSOptions, names) -> dict[str, Any]:
 def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any]:
     hyp = fit.posterior.hypotheses
     refined = fit.refined is not None
-    return {"thetas": opts.thetas or ("adaptive" if refined else "paper-real"),
-            "betas": opts.betas or ("adaptive" if refined else "paper-sim"),
+    return {"thetas": opts.thetas or (ADAPTIVE if refined else DEFAULT_THETAS.value),
+            "betas": opts.betas or (ADAPTIVE if refined else DEFAULT_BETAS.value),
             "sample_thetas": opts.sample_thetas,
             "hypotheses": "adaptive" if refined else "fixed", "max_hypotheses": opts.max_hypotheses,
             "max_seconds": opts.max_seconds,
@@ -485,6 +521,38 @@ class MethodRun(NamedTuple):
     settings: dict[str, Any]
 
 
+Opts = TypeVar("Opts")
+
+
+class InferenceMethod(Protocol[Opts]):
+    """What every inference method offers (:class:`Method` is the package's one implementation).
+
+    Attributes:
+        name: the method's name (a :class:`~expertise_irl.options.Method`).
+        options: its options dataclass (fields named as the command line's options).
+        unit: what its progress counts; ``label``: the bar's name.
+        measure_lanes: whether it solves many hypotheses at once (the lane width is worth measuring).
+    """
+
+    name: str
+    options: type[Opts]
+    unit: str
+    measure_lanes: bool
+
+    def options_from(self, values: Mapping[str, Any]) -> Opts:
+        """The options from ``values`` (keys that are not its fields are ignored)."""
+        ...
+
+    def progress_label(self, opts: Opts) -> str:
+        """The progress bar's name for ``opts``."""
+        ...
+
+    def run(self, mdp, trajs, opts: Opts, seed: Seed, *, progress: Progress = None, note: Note = None,
+            setup: Any = None) -> MethodRun:
+        """Set up, fit and describe (see :meth:`Method.run`)."""
+        ...
+
+
 @dataclass(frozen=True)
 class Method:
     """One inference method: its options dataclass, what it runs and how it is described.
@@ -524,30 +592,30 @@ class Method:
         t0 = time.perf_counter()
         if setup is None:
             setup = self.setup(mdp, opts, seed, note)
-        result = self.fit(mdp, trajs, opts, seed, progress, setup)
+        fit = self.fit(mdp, trajs, opts, seed, progress, setup)
         first = mdp if hasattr(mdp, "feature_names") else mdp[0]
-        out = self.describe(result, opts, first.feature_names)
+        out = self.describe(fit, opts, first.feature_names)
         out["run_time_s"] = time.perf_counter() - t0
-        return MethodRun(self.name, result, out, self.record(result, opts))
+        return MethodRun(self.name, fit.result, out, self.record(fit, opts))
 
 
+_M = MethodName
 METHODS: dict[str, Method] = {
-    "discrete": Method("discrete", DiscreteOptions, _setup_discrete, _fit_discrete, _describe_discrete,
-                       _discrete_settings, "hypotheses", "solving soft value iteration", measure_lanes=True),
-    "birl": Method("birl", BIRLOptions, _announce, _fit_birl, _describe_birl, _continuous_settings,
-                   "iterations", "Algorithm 1"),
-    "map": Method("map", MAPOptions, _announce, _fit_map, _describe_map, _continuous_settings,
-                  "starts", "MAP (L-BFGS-B)"),
-    "nuts": Method("nuts", NUTSOptions, _announce, _fit_nuts, _describe_nuts, _continuous_settings,
-                   "iterations", "NUTS ({chains} chains, warm-up included)"),
+    _M.DISCRETE: Method(_M.DISCRETE, DiscreteOptions, _setup_discrete, _fit_discrete, _describe_discrete,
+                        _discrete_settings, "hypotheses", "solving soft value iteration", measure_lanes=True),
+    _M.BIRL: Method(_M.BIRL, BIRLOptions, _announce, _fit_birl, _describe_birl, _continuous_settings,
+                    "iterations", "Algorithm 1"),
+    _M.MAP: Method(_M.MAP, MAPOptions, _announce, _fit_map, _describe_map, _continuous_settings,
+                   "starts", "MAP (L-BFGS-B)"),
+    _M.NUTS: Method(_M.NUTS, NUTSOptions, _announce, _fit_nuts, _describe_nuts, _continuous_settings,
+                    "iterations", "NUTS ({chains} chains, warm-up included)"),
 }
 
 
 def get_method(name: str) -> Method:
-    """The method called ``name``; :class:`InputError` naming the choices."""
-    if name not in METHODS:
-        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {name!r}")
-    return METHODS[name]
+    """The method called ``name``; an :class:`~expertise_irl.options.OptionError` (``method``) naming
+    the choices."""
+    return METHODS[choose(MethodName, name, "method")]
 
 
 def option_owners() -> dict[str, tuple[str, ...]]:
@@ -568,7 +636,7 @@ def document(run: MethodRun, *, feature_names: Sequence[str], settings: dict[str
     from ..results import continuous_result, discrete_result
 
     settings = {**settings, **run.settings}
-    if isinstance(run.result, DiscreteFit):
+    if run.method == MethodName.DISCRETE:
         fit = run.result
         doc = discrete_result(fit.posterior, feature_names=feature_names, settings=settings, data=data,
                               trace=fit.trace, trace_index=fit.trace_index)

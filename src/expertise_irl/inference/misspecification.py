@@ -41,10 +41,12 @@ import numpy as np
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
+from ..options import DEFAULT_CHECK as DEFAULT_CHECK_CHOICE
+from ..options import Check
 from .predictive_checks import ALPHA, MAX_DRAWS, REPLICATES, Task, predictive_checks
 
-CHECKS = ("off", "fast", "full")
-DEFAULT_CHECK = "fast"
+CHECKS = tuple(c.value for c in Check)
+DEFAULT_CHECK = DEFAULT_CHECK_CHOICE.value
 
 EXPLAINED = "features explain the behaviour"
 UNEXPLAINED = "behaviour the features do not explain"
@@ -62,10 +64,12 @@ MIN_ACTIONS = 40
 TOP_STATES = 5
 
 
-def check_level(check: str, flag: str = "--check") -> str:
-    if check not in CHECKS:
-        raise InputError(f"{flag} must be one of {', '.join(CHECKS)}, got {check!r}")
-    return check
+def check_level(check: str, field: str = "check") -> str:
+    """``check`` as one of :class:`~expertise_irl.options.Check`; an ``OptionError`` naming ``field``
+    if it is none."""
+    from ..options import choose
+
+    return choose(Check, check, field).value
 
 
 def thresholds() -> dict[str, Any]:

@@ -37,6 +37,7 @@ from ..hypotheses import HypothesisSet
 from ..inference.active import expected_information_gain
 from ..inference.online import OnlineEstimator
 from ..mdp import ACTION_NAMES
+from ..result import Result
 from ..worlds.maps import Map
 from ..worlds.warehouse import HEADING_LETTERS, WarehouseMap
 
@@ -225,8 +226,10 @@ class LiveSession:
             fh.flush()
             os.fsync(fh.fileno())
 
-    def write_result(self) -> None:
-        from ..results import discrete_result, write_json
+    def result(self) -> Result:
+        """The session's result: the online posterior over the set in use, the refinement that made
+        it, the start log (:func:`expertise_irl.pipeline.discrete_result`)."""
+        from ..pipeline import discrete_result
 
         trajs = self.estimator.trajectories()
         hyp = self.estimator.hypotheses
@@ -234,19 +237,24 @@ class LiveSession:
         if self.refine is not None:  # the set in use, as infer records it
             settings = {**settings, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
                         "prior": self.refined.record["prior"] if self.refined else "uniform"}
-        doc = discrete_result(self.estimator.belief(), feature_names=self.mdp.feature_names,
-                              settings=settings,
-                              data={"episodes": trajs.n_episodes, "actions": len(trajs),
-                                    "demos": DEMOS_NAME})
-        if self.refined is not None:
-            doc["refinement"] = self.refined.record
-            if self.refined.warnings:
-                doc.setdefault("diagnostics", {})["warnings"] = list(self.refined.warnings)
-        doc["live"] = {"starts": self.starts_log, "episode_open": self.estimator.episode_open,
-                       "mode": self.mode}
+        live: dict[str, Any] = {"starts": self.starts_log, "episode_open": self.estimator.episode_open,
+                                "mode": self.mode}
         if self.refine is not None:  # what the page showed, which a resume cannot recompute
-            doc["live"]["history"] = {"beta_hat": self.history_beta, "entropy": self.history_entropy}
-        write_json(self.result_path, doc)
+            live["history"] = {"beta_hat": self.history_beta, "entropy": self.history_entropy}
+        refined = self.refined
+        return discrete_result(self.estimator.belief(), feature_names=self.mdp.feature_names,
+                               settings=settings,
+                               data={"episodes": trajs.n_episodes, "actions": len(trajs),
+                                     "demos": DEMOS_NAME},
+                               refinement=None if refined is None else refined.record,
+                               warnings=list(refined.warnings) if refined is not None and refined.warnings
+                               else None,
+                               extra={"live": live})
+
+    def write_result(self) -> None:
+        from ..results import write_result
+
+        write_result(self.result_path, self.result())
 
     # ------------------------------------------------------------ start choice
     def choose_start(self) -> StartChoice:

@@ -44,11 +44,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .. import __version__
+from .. import __version__, options
 from ..atomic import write_atomic
 from ..errors import InputError
 from ..experiments import engine
 from ..hypotheses import GROUP_NAMES
+from ..models import DEFAULT_MODEL
+from ..options import Expertise, Share, choose
 from ..results import file_digest, finite_or_null, map_digest, write_json
 from . import evidence as model_evidence
 from . import posteriors
@@ -74,24 +76,24 @@ LAYOUT = 2
 
 #: ``--betas auto``: the study's β grid from the maps' optimal values Q*
 #: (:func:`.diagnostics.auto_beta_grid`).
-AUTO_BETAS = "auto"
+AUTO_BETAS = options.AUTO_BETAS
 
 
 @dataclass(frozen=True)
 class StudyOptions:
     """What a study computes (its identity: another value on the same DIR is refused)."""
 
-    thetas: str = "paper-real"
+    thetas: str = options.DEFAULT_THETAS
     betas: str = AUTO_BETAS
-    method: str = "discrete"
+    method: str = options.DEFAULT_METHOD
     rate: float = 1.0
     max_dt: float | None = None
     fill_gaps: bool = False
     snap: bool = False
-    model: str = "maxent"
+    model: str = DEFAULT_MODEL
     models: tuple[str, ...] = ()  # --models: observation models to compare (discrete only)
-    share: str = "both"  # --share: both (one θ, β per participant) or beta (a θ per task)
-    expertise: str = "stationary"  # --expertise changing: a β per episode, in task order
+    share: str = options.DEFAULT_SHARE  # --share: both (one θ, β per participant) or beta (a θ per task)
+    expertise: str = options.DEFAULT_EXPERTISE  # --expertise changing: a β per episode, in task order
 
 
 @dataclass(frozen=True)
@@ -101,13 +103,14 @@ class ReportOptions:
     figures: str = "all"  # --figures all|none|N
     group_by: str | None = None  # --group-by COLUMN
     population: bool = False  # --population: the hierarchical model over the participants
-    check: str = "fast"  # --check off|fast|full: diagnostics.misspecification of each participant
+    # --check off|fast|full: diagnostics.misspecification of each participant
+    check: str = options.DEFAULT_CHECK
     # --refine/--no-refine: refine each participant's set (inference.adaptive); None: when no set is named
     refine: bool | None = None
 
 
 #: The set a study solves when none is named (``--thetas`` / ``--betas``).
-DEFAULT_SET = ("paper-real", AUTO_BETAS)
+DEFAULT_SET = (options.DEFAULT_THETAS, AUTO_BETAS)
 
 
 def refines(opts: StudyOptions, report: ReportOptions) -> bool:
@@ -461,11 +464,8 @@ def _optimal_phase(out: Path, manifest: Manifest, data, estimates, opts: StudyOp
 
 def check_expertise(opts: StudyOptions) -> None:
     """``--expertise changing`` needs one θ for all of a person's tasks."""
-    from ..inference.methods import EXPERTISE
-
-    if opts.expertise not in EXPERTISE:
-        raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {opts.expertise!r}")
-    if opts.expertise == "changing" and opts.share != "both":
+    choose(Expertise, opts.expertise, "expertise")
+    if opts.expertise == Expertise.CHANGING and opts.share != Share.BOTH:
         raise InputError("--expertise changing needs --share both (its θ is shared by every episode)")
 
 
@@ -490,7 +490,8 @@ def _hypothesis_sets(manifest: Manifest, opts: StudyOptions):
     Ks = sorted({m.n_features for m in mdps})
     if opts.betas != AUTO_BETAS:
         return {K: DiscreteOptions(thetas=opts.thetas, betas=opts.betas).hypotheses(K) for K in Ks}, None
-    thetas = {K: DiscreteOptions(thetas=opts.thetas, betas="paper-real").hypotheses(K).thetas for K in Ks}
+    thetas = {K: DiscreteOptions(thetas=opts.thetas, betas=options.Preset.PAPER_REAL).hypotheses(K).thetas
+              for K in Ks}
     betas, info = auto_beta_grid(mdps, thetas, model=opts.model)
     spec = ",".join(f"{b:g}" for b in betas)
     return ({K: DiscreteOptions(thetas=opts.thetas, betas=spec).hypotheses(K) for K in Ks},

@@ -29,12 +29,30 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
 from ..experiments.spec import ADDED_FIELD, Column, Study, TaskSpec
+from ..inference.priors import DEFAULT_PRIOR
+from ..models import DEFAULT_MODEL
+from ..options import (
+    DEFAULT_EXPERTISE,
+    DEFAULT_METHOD,
+    DEFAULT_SHARE,
+    DEFAULT_THETAS,
+    Expertise,
+    Method,
+    OptionError,
+    Preset,
+    Share,
+    choose,
+)
 
-METHODS = ("discrete", "map", "nuts")
+#: The methods a study runs (Algorithm 1 takes one task: not a participant's several).
+METHODS = tuple(m.value for m in Method if m != Method.BIRL)
 #: What a participant's tasks share: ``both`` one (θ, β); ``beta`` one β, a θ per task.
-SHARES = ("both", "beta")
+SHARES = tuple(s.value for s in Share)
+#: B of a study config that names none. The engine's config has no maps to choose a grid from, so it
+#: keeps the paper's real-data set; ``expertise-irl study`` always names one (``--betas auto`` by
+#: default, :data:`expertise_irl.options.AUTO_BETAS`, chosen from the maps before the config is made).
+CONFIG_BETAS = Preset.PAPER_REAL
 
 
 @dataclass(frozen=True)
@@ -42,27 +60,26 @@ class UserStudyConfig:
     """Data and options of one user study (the CLI builds it from the manifest)."""
 
     data: str  # JSON: {"maps": {key: map entry}, "tasks": [task]} (see userstudy.run)
-    thetas: str = "paper-real"
-    betas: str = "paper-real"
-    model: str = "maxent"
-    method: str = "discrete"
-    prior: str = "log-uniform"
+    thetas: str = DEFAULT_THETAS
+    betas: str = CONFIG_BETAS
+    model: str = DEFAULT_MODEL
+    method: str = DEFAULT_METHOD
+    prior: str = DEFAULT_PRIOR
     starts: int = 4
     chains: int = 4
     warmup: int = 500
     samples: int = 500
-    share: str = "both"
+    share: str = DEFAULT_SHARE
     # map/nuts: "changing" also fits the learning curve (inference.trend) over each participant's
     # episodes in task order (the discrete set's curve needs no engine option: see userstudy.run)
-    expertise: str = field(default="stationary", metadata={ADDED_FIELD: True})
+    expertise: str = field(default=DEFAULT_EXPERTISE, metadata={ADDED_FIELD: True})
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
-            raise InputError(f"--method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if self.share not in SHARES:
-            raise InputError(f"--share must be one of {', '.join(SHARES)}, got {self.share!r}")
-        if self.expertise not in ("stationary", "changing"):
-            raise InputError(f"--expertise must be stationary or changing, got {self.expertise!r}")
+            raise OptionError(f"{{method}} must be one of {', '.join(METHODS)}, got {self.method!r}",
+                              "method")
+        choose(Share, self.share, "share")
+        choose(Expertise, self.expertise, "expertise")
 
 
 @lru_cache(maxsize=4)

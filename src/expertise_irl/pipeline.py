@@ -1,0 +1,284 @@
+"""One inference from a task and demonstrations to a :class:`~expertise_irl.result.Result`.
+
+:func:`infer` is the path every entry point takes: ``expertise-irl infer`` and ``demo``, the live
+page (:mod:`expertise_irl.live`) and Python users; ``study`` builds each participant's result with
+the same constructor (:func:`discrete_result`) from the posteriors its engine computes. One call::
+
+    world = as_world("crossroads")                 # a map name or file, an .npz, a map or an MDP
+    demos = as_demos("demos.csv", world)           # a demonstrations CSV or Trajectories
+    job = prepare(world, demos, "discrete", seed=0, check="fast")   # options checked, set chosen
+    result = job.run()                             # the method, then the checks
+    write_result("result.json", result)
+
+or ``infer(world, demos)`` for the same in one call. In order: the options are read into the
+method's options dataclass (:mod:`.inference.methods`; an
+:class:`~expertise_irl.options.OptionError` names a bad field), the method's setup runs (the
+discrete set is chosen; ``note`` hears the prior of a continuous method), the method fits and
+describes its posterior, the settings record the inputs with their digests, the seed, the map's
+goal reward and γ and the method's options, and the misspecification checks
+(:mod:`.inference.misspecification`) add their verdict and warnings.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .demos.trajectories import Trajectories
+from .errors import InputError
+from .inference.methods import Method, MethodRun, Note, Progress, document, get_method
+from .mdp import TabularMDP
+from .options import DEFAULT_CHECK, DEFAULT_METHOD
+from .result import Result
+from .results import discrete_result as _discrete_document
+from .results import file_digest, map_digest
+
+
+@dataclass(frozen=True)
+class World:
+    """The task inferred on and where it came from.
+
+    Attributes:
+        mdp: the tabular MDP.
+        map: the zone map or floor plan it was compiled from (None for an archive or an MDP object).
+        name: how it was named (a bundled name, a file path; None for an object).
+        digest: ``sha256:`` of its content (:func:`~expertise_irl.results.map_digest` of a map, the
+            file's of an archive; None for an MDP object).
+    """
+
+    mdp: TabularMDP
+    map: Any = None
+    name: str | None = None
+    digest: str | None = None
+
+    @property
+    def goal_reward_mode(self) -> str:
+        """The map's goal reward mode; an MDP's: ``fixed`` when it holds a reward outside θ·φ."""
+        if self.map is not None:
+            return self.map.goal_reward_mode
+        return "fixed" if self.mdp.has_offset else "scaled"
+
+    def source(self) -> dict[str, Any]:
+        """The result's settings of the task: its name, digest, goal reward and γ."""
+        return {"mdp": self.name, "mdp_digest": self.digest}
+
+    def reward(self) -> dict[str, Any]:
+        return {"goal_bonus": self.map.goal_bonus if self.map is not None else None,
+                "goal_reward_mode": self.goal_reward_mode, "gamma": self.mdp.gamma}
+
+
+@dataclass(frozen=True)
+class Demos:
+    """Demonstrations and the file they came from (None for a :class:`Trajectories` object)."""
+
+    trajectories: Trajectories
+    path: str | None = None
+    digest: str | None = None
+
+
+def as_world(world: Any, goal_reward: str | None = None) -> World:
+    """``world`` as a :class:`World`: a :class:`World`, a :class:`TabularMDP`, a zone map or floor
+    plan, an ``.npz`` archive's path, or a map file's path or bundled map's name.
+
+    ``goal_reward`` (``scaled`` or ``fixed``) applies to a map, never to an MDP."""
+    import dataclasses
+
+    if isinstance(world, World):
+        return world
+    if isinstance(world, TabularMDP):
+        return World(world)
+    if isinstance(world, str | Path) and Path(world).suffix == ".npz":
+        if goal_reward is not None:
+            raise InputError("goal_reward applies to a map; an MDP archive holds its own reward")
+        return World(TabularMDP.load(world), None, str(world), file_digest(world))
+    if isinstance(world, str | Path):
+        from .worlds.maps import resolve_world
+
+        zone_map, name = resolve_world(str(world)), str(world)
+    elif hasattr(world, "to_mdp"):
+        zone_map, name = world, getattr(world, "name", None)
+    else:
+        raise InputError(f"world must be a map, a map's name or file, an .npz archive or a TabularMDP, "
+                         f"got {type(world).__name__}")
+    if goal_reward is not None:
+        from .worlds.grid import check_goal_reward_mode
+
+        zone_map = dataclasses.replace(zone_map, goal_reward_mode=check_goal_reward_mode(goal_reward,
+                                                                                         "goal_reward"))
+    return World(zone_map.to_mdp(), zone_map, name, map_digest(zone_map))
+
+
+def as_demos(demos: Any, world: World | TabularMDP) -> Demos:
+    """``demos`` as :class:`Demos`: :class:`Demos`, :class:`Trajectories` or a demonstrations CSV's path
+    (read for ``world``'s MDP)."""
+    if isinstance(demos, Demos):
+        return demos
+    if isinstance(demos, Trajectories):
+        return Demos(demos)
+    from .demos.csv_io import read_demos_csv
+
+    mdp = world.mdp if isinstance(world, World) else world
+    return Demos(read_demos_csv(demos, mdp), str(demos), file_digest(demos))
+
+
+# --------------------------------------------------------------------------- one inference
+@dataclass(frozen=True)
+class Prepared:
+    """An inference whose options are checked and whose setup is done; :meth:`run` does the rest.
+
+    Attributes:
+        method: the method (:class:`~expertise_irl.inference.methods.Method`).
+        options: its options.
+        world, demos: the inputs.
+        seed: the seed of every random choice.
+        check: the misspecification checks (``off``, ``fast``, ``full``).
+        setup: the method's setup (the discrete set).
+        command: the command recorded in the settings (``infer`` unless told).
+    """
+
+    method: Method
+    options: Any
+    world: World
+    demos: Demos
+    seed: int
+    check: str
+    setup: Any
+    command: str
+
+    @property
+    def unit(self) -> str:
+        """What the method's progress counts."""
+        return self.method.unit
+
+    @property
+    def progress_label(self) -> str:
+        return self.method.progress_label(self.options)
+
+    def run(self, progress: Progress = None) -> Result:
+        """The method's fit, described, recorded and checked: the result (its ``timing`` holds the
+        seconds of the inference and of the checks)."""
+        from .inference.misspecification import add_to_result, posterior_of_run, refit_of_run
+
+        mdp, trajs = self.world.mdp, self.demos.trajectories
+        run = self.method.run(mdp, trajs, self.options, self.seed, progress=progress, setup=self.setup)
+        doc = self.document(run)
+        t0 = time.perf_counter()
+        add_to_result(doc, [(mdp, trajs)], posterior_of_run(run, mdp), check=self.check,
+                      model=run.settings["model"], seed=self.seed,
+                      refit=refit_of_run(run, mdp, trajs, self.options))
+        result = Result.from_json(doc)
+        return result.replace(timing={"inference_s": float(run.fields["run_time_s"]),
+                                      "checks_s": time.perf_counter() - t0})
+
+    def settings(self) -> dict[str, Any]:
+        """The settings every result of this inference starts with (the method's options follow)."""
+        return {"command": self.command, "method": self.method.name, **self.world.source(),
+                "demos": self.demos.path, "demos_digest": self.demos.digest, "seed": self.seed,
+                **self.world.reward()}
+
+    def document(self, run: MethodRun) -> dict[str, Any]:
+        trajs = self.demos.trajectories
+        doc = document(run, feature_names=self.world.mdp.feature_names, settings=self.settings(),
+                       data={"episodes": trajs.n_episodes, "actions": len(trajs)})
+        doc["settings"]["check"] = self.check
+        return doc
+
+
+def prepare(world: Any, demos: Any, method: str = DEFAULT_METHOD, *, options: Any = None, seed: int = 0,
+            check: str = DEFAULT_CHECK, note: Note = None, command: str = "infer",
+            **values: Any) -> Prepared:
+    """Check the options and set up one inference (see the module docstring).
+
+    Args:
+        world: the task (:func:`as_world`).
+        demos: the demonstrations (:func:`as_demos`).
+        method: ``discrete`` (the default), ``birl``, ``map`` or ``nuts``.
+        options: the method's options dataclass; or give its fields as keyword ``values``.
+        seed: the seed of every random choice.
+        check: the misspecification checks: ``off``, ``fast`` (the default) or ``full``.
+        note: hears what a user should know before the long part (the prior, a capped set).
+        command: recorded as ``settings.command``.
+        **values: the method's options by field name (``thetas``, ``tol``, ``chains``, ...).
+
+    Returns:
+        The prepared inference.
+
+    Raises:
+        OptionError: an option's value (naming the field), an option the method does not take, or
+            both ``options`` and ``values``.
+    """
+    from .inference.misspecification import check_level
+    from .options import OptionError
+
+    chosen = get_method(method)
+    check = check_level(check)
+    if options is None:
+        known = {f for f in chosen.options.__dataclass_fields__}
+        for name in values:
+            if name not in known:
+                raise OptionError(f"{{{name}}} is not an option of method {chosen.name}", name)
+        options = chosen.options_from(values)
+    elif values:
+        raise OptionError("give the options either as {options} or by field, not both", "options")
+    w = as_world(world)
+    d = as_demos(demos, w)
+    setup = chosen.setup(w.mdp, options, seed, note)
+    return Prepared(chosen, options, w, d, seed, check, setup, command)
+
+
+def infer(world: Any, demos: Any, method: str = DEFAULT_METHOD, *, options: Any = None, seed: int = 0,
+          check: str = DEFAULT_CHECK, progress: Progress = None, note: Note = None, command: str = "infer",
+          **values: Any) -> Result:
+    """Infer expertise β and preferences θ from ``demos`` on ``world``: the command line's ``infer``.
+
+    Args:
+        world: a :class:`~expertise_irl.mdp.TabularMDP`, a zone map or floor plan, a bundled map's
+            name, a map file or an ``.npz`` archive.
+        demos: :class:`~expertise_irl.demos.trajectories.Trajectories` or a demonstrations CSV.
+        method: ``discrete`` (the default; an adaptive set unless one is named), ``birl``, ``map``
+            or ``nuts``.
+        options: the method's options dataclass (or give its fields as keywords).
+        seed: the seed of every random choice.
+        check: ``off``, ``fast`` (the default) or ``full``: low expertise or missing features?
+        progress: ``progress(done, total)`` as the method runs.
+        note: hears the notes the command line prints before its progress bar.
+        command: recorded as ``settings.command``.
+        **values: the method's options by field name.
+
+    Returns:
+        The :class:`~expertise_irl.result.Result`, as ``expertise-irl infer`` writes it (with paths
+        given for ``world`` and ``demos``, the same document).
+
+    Raises:
+        OptionError: an option's value, naming the field.
+        InputError: the task or the demonstrations.
+    """
+    job = prepare(world, demos, method, options=options, seed=seed, check=check, note=note, command=command,
+                  **values)
+    return job.run(progress)
+
+
+# --------------------------------------------------------------------------- constructors
+def discrete_result(belief, *, feature_names, settings: Mapping[str, Any],
+                    data: Mapping[str, Any] | None = None, trace=None, trace_index=None, refinement=None,
+                    warnings=None, extra: Mapping[str, Any] | None = None,
+                    run_time_s: float | None = None) -> Result:
+    """The :class:`~expertise_irl.result.Result` of a discrete posterior ``belief`` (a
+    :class:`~expertise_irl.inference.belief.DiscreteBelief`) computed elsewhere (the live page's
+    online estimate, a study participant's posterior over their tasks, the demo's).
+
+    ``refinement``: an adaptive set's record; ``warnings``: the run's warnings (None: the result
+    records no diagnostics); ``extra``: the command's own entries beside the inference."""
+    doc = _discrete_document(belief, feature_names=feature_names, settings=dict(settings),
+                             data=dict(data or {}), trace=trace, trace_index=trace_index)
+    if refinement is not None:
+        doc["refinement"] = refinement
+    if warnings is not None:
+        doc["diagnostics"] = {"warnings": list(warnings)}
+    if run_time_s is not None:
+        doc["run_time_s"] = run_time_s
+    doc.update(extra or {})
+    return Result.from_json(doc)
