@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
-from expertise_irl.demos.simulation import DEFAULT_MAX_STEPS, simulate
+from expertise_irl.demos.simulation import DEFAULT_MAX_STEPS, best_move, cap_note, episode_outcomes, simulate
 from expertise_irl.demos.trajectories import Trajectories, validate
 from expertise_irl.errors import InputError
 from expertise_irl.mdp import TabularMDP
@@ -392,3 +392,38 @@ def test_simulate_accepts_an_integer_seed():
     np.testing.assert_array_equal(a.action, b.action)
     with pytest.raises(InputError, match="seed"):
         simulate(mdp, [1, 0, 0, 0, 0], 0.5, 5, -1)
+
+
+# ------------------------------------------------------------------ episode outcomes
+def test_episode_outcomes_goal_cap_and_cut():
+    zm = parse_map("S..\n.#G\n")
+    mdp = zm.to_mdp()
+    idx = zm.state_index()
+    trajs = Trajectories(
+        episode=[0, 0, 0, 1, 1, 1, 2],
+        step=[0, 1, 2, 0, 1, 2, 0],
+        state=[idx[0, 0], idx[0, 1], idx[0, 2], idx[0, 0], idx[0, 1], idx[0, 0], idx[0, 0]],
+        action=[RIGHT, RIGHT, DOWN, RIGHT, LEFT, RIGHT, DOWN],
+    )
+    assert episode_outcomes(trajs, mdp, 3) == ["goal", "cap", "cut"]
+    assert episode_outcomes(trajs, mdp, None) == ["goal", "cut", "cut"]
+
+
+def test_cap_note_names_paying_moves_and_entropy():
+    assert cap_note(["goal", "cut"], 500, 10.0) is None
+    note = cap_note(["cap", "goal"], 500, 0.01, (0.14, "road"))
+    assert note.startswith("1 of 2 episodes hit the 500-step cap")
+    assert "from road" in note and "entropy" not in note  # an expert: the road pays
+    note = cap_note(["cap"], 200, 10.0, (-0.2, "length"))
+    assert "200-step cap" in note and "entropy" in note and "from length" not in note
+
+
+def test_cap_note_without_the_entropy_bonus():
+    note = cap_note(["cap"], 500, 10.0, (-0.2, "length"), model="boltzmann")
+    assert "entropy" not in note and "boltzmann" in note
+
+
+def test_best_move_is_the_largest_reward_short_of_the_goal():
+    mdp = parse_map("S>.\n.#G\n").to_mdp()  # one road cell, whose entering move pays +1 under θ = road
+    assert best_move(mdp, [0, 1, 0, 0, 0]) == (1.0, "road")
+    assert best_move(mdp, [1, 0, 0, 0, 0])[0] == -1.0  # every move costs one step of length

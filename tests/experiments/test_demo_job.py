@@ -10,7 +10,6 @@ from expertise_irl.experiments.demo import DEFAULT_EPISODES, DEFAULT_K, DEMO_BET
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, expertise_group, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.metrics import cosine_similarity, policy_regret
-from expertise_irl.plots.maps import episode_outcomes
 
 SUMMARY_KEYS = {
     "theta_true", "beta_true", "group_true", "theta_hat", "beta_hat", "group_hat",
@@ -106,7 +105,7 @@ def test_the_first_figure_shows_the_method_working():
     """Seed 0, the README's figure: the person reaches the goal every time and is recovered."""
     r = run_demo(0)
     assert r.beta_true == 0.09
-    assert episode_outcomes(r.trajectories, r.mdp, r.max_steps) == ["goal"] * DEFAULT_EPISODES
+    assert r.outcomes() == ["goal"] * DEFAULT_EPISODES and r.cap_note() is None
     s = r.summary()
     assert s["group_hat"] == "high" and s["beta_hat"] == pytest.approx(0.09, abs=1e-6)
     assert s["cosine_similarity"] > 0.99 and s["truth_probability"] > 0.9

@@ -14,6 +14,7 @@ from matplotlib.patches import Circle
 
 from expertise_irl.demos.trajectories import Trajectories
 from expertise_irl.errors import InputError
+from expertise_irl.inference.identifiability import absent_features
 from expertise_irl.plots import maps as render
 from expertise_irl.worlds.zones import FEATURE_NAMES, load_bundled, parse_map
 
@@ -282,20 +283,6 @@ def _texts(fig) -> str:
     return "\n".join(t.get_text() for ax in fig.get_axes() for t in ax.texts)
 
 
-def test_episode_outcomes_goal_cap_and_cut():
-    zm = parse_map("S..\n.#G\n")
-    mdp = zm.to_mdp()
-    idx = zm.state_index()
-    trajs = Trajectories(
-        episode=[0, 0, 0, 1, 1, 1, 2],
-        step=[0, 1, 2, 0, 1, 2, 0],
-        state=[idx[0, 0], idx[0, 1], idx[0, 2], idx[0, 0], idx[0, 1], idx[0, 0], idx[0, 0]],
-        action=[RIGHT, RIGHT, DOWN, RIGHT, LEFT, RIGHT, DOWN],
-    )
-    assert render.episode_outcomes(trajs, mdp, 3) == ["goal", "cap", "cut"]
-    assert render.episode_outcomes(trajs, mdp, None) == ["goal", "cut", "cut"]
-
-
 def test_demo_figure_draws_a_few_episodes_and_says_why_they_hit_the_cap(wandering_run):
     run = wandering_run
     fig = render.demo_figure(run, title="t")
@@ -359,7 +346,7 @@ def test_demo_figure_labels_joint_and_marginal_and_absent_features(wandering_run
     marked = [t.get_text() for ax in fig.get_axes() for t in ax.get_xticklabels()
               if t.get_gid() == "absent-feature"]
     assert marked == ["road\n(not on\nthe map)"]
-    assert render.absent_features(run.mdp) == [False, True, False, False, False]
+    assert absent_features(run.mdp) == run.absent_features() == [False, True, False, False, False]
 
 
 def test_demo_figure_of_an_expert_reports_no_cap(expert_run, tmp_path):
@@ -373,17 +360,3 @@ def test_demo_figure_of_an_expert_reports_no_cap(expert_run, tmp_path):
     before = plt.get_fignums()
     out = render.render_demo_png(tmp_path / "d.png", run, title="x")
     assert out.read_bytes()[:8] == PNG_SIGNATURE and plt.get_fignums() == before
-
-
-def test_cap_note_names_paying_moves_and_entropy():
-    assert render.cap_note(["goal", "cut"], 500, 10.0) is None
-    note = render.cap_note(["cap", "goal"], 500, 0.01, (0.14, "road"))
-    assert note.startswith("1 of 2 episodes hit the 500-step cap")
-    assert "from road" in note and "entropy" not in note  # an expert: the road pays
-    note = render.cap_note(["cap"], 200, 10.0, (-0.2, "length"))
-    assert "200-step cap" in note and "entropy" in note and "from length" not in note
-
-
-def test_cap_note_without_the_entropy_bonus():
-    note = render.cap_note(["cap"], 500, 10.0, (-0.2, "length"), model="boltzmann")
-    assert "entropy" not in note and "boltzmann" in note

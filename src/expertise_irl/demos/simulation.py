@@ -1,12 +1,14 @@
-"""A simulated person: episodes drawn from the policy of one hypothesis (θ, β) on an MDP."""
+"""A simulated person: episodes drawn from the policy of one hypothesis (θ, β) on an MDP; how each
+episode ended (:func:`episode_outcomes`) and, for those cut at the step cap, why (:func:`cap_note`)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
 from ..errors import ArgumentError, InputError
+from ..hypotheses import GROUP_BOUNDARIES
 from ..mdp import TabularMDP
 from ..models import DEFAULT_MODEL, check_model
 from ..planning.soft_vi import solve
@@ -225,3 +227,60 @@ def capped_flags(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> np.nda
 def capped_episodes(trajs: Trajectories, mdp: TabularMDP, max_steps: int) -> int:
     """Episodes that ran to ``max_steps`` actions without entering a terminal state."""
     return int(np.sum(capped_flags(trajs, mdp, max_steps)))
+
+
+def episode_outcomes(trajs: Trajectories, mdp: TabularMDP, max_steps: int | None) -> list[str]:
+    """``"goal"`` (entered a terminal state), ``"cap"`` (stopped after ``max_steps`` actions
+    without reaching one) or ``"cut"`` (shorter, not in a goal: a recording that ends early)."""
+    out = []
+    for states, actions in trajs.episodes():
+        last = int(mdp.next_state[states[-1], actions[-1]])
+        if last >= 0 and mdp.terminal[last]:
+            out.append("goal")
+        elif max_steps is not None and len(states) >= max_steps:
+            out.append("cap")
+        else:
+            out.append("cut")
+    return out
+
+
+def best_move(mdp: TabularMDP, theta) -> tuple[float, str | None]:
+    """Largest reward θ·φ of a move that does not enter a goal, and the feature that pays most in it."""
+    ns = np.asarray(mdp.next_state)
+    ok = ns >= 0
+    ok &= ~np.asarray(mdp.terminal)[np.where(ok, ns, 0)]
+    if not ok.any():
+        return -np.inf, None
+    contrib = np.asarray(mdp.features)[ok] * np.asarray(theta, dtype=float)  # [moves, K]
+    r = np.asarray(mdp.reward(theta))[ok]
+    i = int(np.argmax(r))
+    return float(r[i]), str(mdp.feature_names[int(np.argmax(contrib[i]))])
+
+
+def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | None = None,
+             move: tuple[float, str | None] | None = None, model: str = "maxent") -> str | None:
+    """Sentences on the episodes that hit the step cap and why (None when none did).
+
+    Causes, all part of the model: moves that pay (``move`` = (largest reward of a move that
+    does not enter the goal, the feature behind it)), and, for the paper's ``maxent`` model,
+    the entropy bonus, which grows with β.
+    """
+    n_cap, n = sum(o == "cap" for o in outcomes), len(outcomes)
+    if n_cap == 0:
+        return None
+    text = (f"{n_cap} of {n} episode{'s' if n != 1 else ''} hit the {max_steps}-step cap without "
+            "reaching the goal. That is the model, not a bug:")
+    reasons = []
+    pays = move is not None and move[0] > 0
+    if pays:
+        reasons.append(f"some moves pay (reward θ*·φ up to +{move[0]:.2g}, from {move[1]}), so "
+                       "going round can be worth more than finishing")
+    if model == "maxent" and (not pays or beta_true is None or beta_true >= GROUP_BOUNDARIES[0]):
+        who = f"β* = {beta_true:g}" if beta_true is not None else "a large β"
+        reasons.append("the paper's max-ent person is paid for randomness (β × entropy per step) "
+                       f"while entering the goal ends all pay, and with {who} wandering is worth "
+                       "more than finishing")
+    if not reasons:
+        reasons.append(f"under the {model} model with these weights the goal is not worth the "
+                       "way there")
+    return f"{text} {'; and '.join(reasons)}."

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..demos.simulation import DEFAULT_MAX_STEPS, simulate
+from ..demos.simulation import DEFAULT_MAX_STEPS, best_move, cap_note, episode_outcomes, simulate
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..hypotheses import (
@@ -35,6 +35,7 @@ from ..hypotheses import (
     theta_grid,
 )
 from ..inference.belief import DiscreteBelief
+from ..inference.identifiability import absent_features
 from ..mdp import TabularMDP
 from ..metrics import cosine_similarity, expertise_distance, policy_regret
 from ..models import DEFAULT_MODEL
@@ -71,6 +72,22 @@ class DemoRun:
         idx = self.hypotheses.index(self.theta_true, self.beta_true)
         assert idx is not None
         return idx
+
+    def outcomes(self) -> list[str]:
+        """How each episode ended: ``"goal"``, ``"cap"`` or ``"cut"``
+        (:func:`~expertise_irl.demos.simulation.episode_outcomes`)."""
+        return episode_outcomes(self.trajectories, self.mdp, self.max_steps)
+
+    def cap_note(self) -> str | None:
+        """Why episodes hit the step cap under the person's model and (θ*, β*), None when none did
+        (:func:`~expertise_irl.demos.simulation.cap_note`)."""
+        return cap_note(self.outcomes(), self.max_steps, self.beta_true, best_move(self.mdp, self.theta_true),
+                        model=self.model)
+
+    def absent_features(self) -> list[bool]:
+        """Per feature, whether it never occurs on the map
+        (:func:`~expertise_irl.inference.identifiability.absent_features`)."""
+        return absent_features(self.mdp)
 
     def summary(self) -> dict[str, Any]:
         b = self.belief

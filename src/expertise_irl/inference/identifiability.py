@@ -87,3 +87,10 @@ def feature_identifiability(mdp: TabularMDP, starts=None) -> dict[str, Any]:
                     f"start states ({names[i]} = {ratio:.4g} × {names[j]}): only θ_{names[i]} + "
                     f"{ratio:.4g}·θ_{names[j]} is identified, not either θ on its own")
     return out
+
+
+def absent_features(mdp: TabularMDP) -> list[bool]:
+    """Per feature: True when no move of the MDP has a non-zero value (e.g. no road on the map)."""
+    f = np.asarray(mdp.features)
+    avail = np.asarray(mdp.next_state) >= 0
+    return [not bool(np.any(f[..., k][avail] != 0)) for k in range(f.shape[-1])]

@@ -565,21 +565,6 @@ DEMO_EPISODES = 3
 DEMO_MOVES = 60
 
 
-def episode_outcomes(trajs: Trajectories, mdp: TabularMDP, max_steps: int | None) -> list[str]:
-    """``"goal"`` (entered a terminal state), ``"cap"`` (stopped after ``max_steps`` actions
-    without reaching one) or ``"cut"`` (shorter, not in a goal: a recording that ends early)."""
-    out = []
-    for states, actions in trajs.episodes():
-        last = int(mdp.next_state[states[-1], actions[-1]])
-        if last >= 0 and mdp.terminal[last]:
-            out.append("goal")
-        elif max_steps is not None and len(states) >= max_steps:
-            out.append("cap")
-        else:
-            out.append("cut")
-    return out
-
-
 def visit_counts(zone_map: ZoneMap, paths_xy: Sequence[np.ndarray]) -> np.ndarray:
     """``[height, width]`` number of times each cell is occupied, over every step of every path."""
     counts = np.zeros((zone_map.height, zone_map.width))
@@ -696,57 +681,6 @@ def episode_marker_handles(outcomes: Sequence[str]) -> list:
     return handles
 
 
-def absent_features(mdp: TabularMDP) -> list[bool]:
-    """Per feature: True when no move of the MDP has a non-zero value (e.g. no road on the map)."""
-    f = np.asarray(mdp.features)
-    avail = np.asarray(mdp.next_state) >= 0
-    return [not bool(np.any(f[..., k][avail] != 0)) for k in range(f.shape[-1])]
-
-
-def best_move(mdp: TabularMDP, theta) -> tuple[float, str | None]:
-    """Largest reward θ·φ of a move that does not enter a goal, and the feature that pays most in it."""
-    ns = np.asarray(mdp.next_state)
-    ok = ns >= 0
-    ok &= ~np.asarray(mdp.terminal)[np.where(ok, ns, 0)]
-    if not ok.any():
-        return -np.inf, None
-    contrib = np.asarray(mdp.features)[ok] * np.asarray(theta, dtype=float)  # [moves, K]
-    r = np.asarray(mdp.reward(theta))[ok]
-    i = int(np.argmax(r))
-    return float(r[i]), str(mdp.feature_names[int(np.argmax(contrib[i]))])
-
-
-def cap_note(outcomes: Sequence[str], max_steps: int | None, beta_true: float | None = None,
-             move: tuple[float, str | None] | None = None, model: str = "maxent") -> str | None:
-    """Sentences on the episodes that hit the step cap and why (None when none did).
-
-    Causes, all part of the model: moves that pay (``move`` = (largest reward of a move that
-    does not enter the goal, the feature behind it)), and, for the paper's ``maxent`` model,
-    the entropy bonus, which grows with β.
-    """
-    from ..hypotheses import GROUP_BOUNDARIES
-
-    n_cap, n = sum(o == "cap" for o in outcomes), len(outcomes)
-    if n_cap == 0:
-        return None
-    text = (f"{n_cap} of {n} episode{'s' if n != 1 else ''} hit the {max_steps}-step cap without "
-            "reaching the goal. That is the model, not a bug:")
-    reasons = []
-    pays = move is not None and move[0] > 0
-    if pays:
-        reasons.append(f"some moves pay (reward θ*·φ up to +{move[0]:.2g}, from {move[1]}), so "
-                       "going round can be worth more than finishing")
-    if model == "maxent" and (not pays or beta_true is None or beta_true >= GROUP_BOUNDARIES[0]):
-        who = f"β* = {beta_true:g}" if beta_true is not None else "a large β"
-        reasons.append("the paper's max-ent person is paid for randomness (β × entropy per step) "
-                       f"while entering the goal ends all pay, and with {who} wandering is worth "
-                       "more than finishing")
-    if not reasons:
-        reasons.append(f"under the {model} model with these weights the goal is not worth the "
-                       "way there")
-    return f"{text} {'; and '.join(reasons)}."
-
-
 def render_demo_png(path: str | Path, run, *, title: str | None = None,
                     n_episodes: int = DEMO_EPISODES, max_moves: int | None = DEMO_MOVES) -> Path:
     """Save the ``expertise-irl demo`` figure (:func:`demo_figure`) as a PNG (dpi 120)."""
@@ -761,12 +695,13 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
     drawn one by one (start and end marked), and a note when episodes hit the step cap.
     Right: the marginal posterior of β, E[θ] against θ* (features that never occur on
     the map are marked), and the most probable θ by marginal probability; the joint
-    posterior probability of the truth is stated.
+    posterior probability of the truth is stated. How the episodes ended, the note on the
+    step cap and the absent features are the run's (``run.outcomes()``, ``run.cap_note()``,
+    ``run.absent_features()``).
     """
     zm, mdp, b = run.zone_map, run.mdp, run.belief
-    max_steps = getattr(run, "max_steps", None)
     paths = paths_to_xy(run.trajectories, mdp)
-    outcomes = episode_outcomes(run.trajectories, mdp, max_steps)
+    outcomes = run.outcomes()
     ids = run.trajectories.episode_ids
     shown = min(n_episodes, len(paths))
     n = len(paths)
@@ -776,8 +711,7 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
     shown_ids = ", ".join(str(int(e)) for e in ids[:shown])
     notes = [f"Episode{'s' if shown != 1 else ''} {shown_ids} drawn "
              f"({shown} of {n}); every episode is in the visit dots."]
-    note = cap_note(outcomes, max_steps, run.beta_true, best_move(mdp, run.theta_true),
-                    model=getattr(run, "model", "maxent"))
+    note = run.cap_note()
     if note:
         notes.append(note)
     import textwrap
@@ -824,7 +758,7 @@ def demo_figure(run, *, title: str | None = None, n_episodes: int = DEMO_EPISODE
                    fontsize=9.5)
     _, ax_top = draw_theta_summary(sf_right.add_subplot(gs[1]), thetas, pt, mdp.feature_names,
                                       theta_true=run.theta_true, top=8,
-                                      ax_top=sf_right.add_subplot(gs[2]), absent=absent_features(mdp))
+                                      ax_top=sf_right.add_subplot(gs[2]), absent=run.absent_features())
     p_truth = float(b.probabilities[run.truth_index])
     ax_top.set_title(rf"most probable $\theta$: marginal P($\theta$) (summed over $\beta$)"
                      "\n" rf"joint P($\theta^*$, $\beta^*$) = {p_truth:.3f}  (★ = $\theta^*$)", fontsize=8.5)

@@ -274,6 +274,7 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
 
     Returns the legend handles (zones, markers, episodes).
     """
+    from ..demos.simulation import episode_outcomes
     from ..worlds.warehouse import WarehouseMap
 
     if isinstance(zone_map, WarehouseMap):  # a floor plan: roads as arrows, restricted red
@@ -289,7 +290,7 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
     if trajs is None:
         return handles
     paths = maps.paths_to_xy(trajs, mdp)
-    outcomes = maps.episode_outcomes(trajs, mdp, max_steps)
+    outcomes = episode_outcomes(trajs, mdp, max_steps)
     maps.draw_visits(ax, grid, paths)
     shown = min(n_episodes, len(paths))
     ids = trajs.episode_ids
