@@ -44,8 +44,11 @@ def test_the_result_has_the_learning_curve_beside_the_stationary_estimate(learne
     d, betas, res = learner
     doc = json.loads((d / "changing.json").read_text())
     still = json.loads((d / "stationary.json").read_text())
-    # beta_hat and theta_hat stay the stationary estimate, identical to a stationary run's.
-    assert doc["beta_hat"] == still["beta_hat"] and doc["theta_hat"] == still["theta_hat"]
+    # beta_hat and theta_hat stay the stationary estimate, a stationary run's: the same to the solvers'
+    # tolerances (the changing run solves every hypothesis to 1e-8 nats, the stationary one is
+    # certified: every probability within 1e-6, here far closer)
+    assert doc["beta_hat"] == pytest.approx(still["beta_hat"], rel=1e-9)
+    np.testing.assert_allclose(doc["theta_hat"], still["theta_hat"], rtol=1e-9, atol=1e-12)
     curve = doc["expertise_by_episode"]
     assert [c["episode"] for c in curve] == list(range(10, 22))  # the file's labels, in order
     for c in curve:

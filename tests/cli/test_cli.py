@@ -364,7 +364,16 @@ def test_infer_per_action_same_posterior_plus_trace(inferred, corridor_csv):
     plain, traced = inferred
     lp_plain = np.array([h["log_posterior"] for h in plain["hypotheses"]], dtype=float)
     lp_traced = np.array([h["log_posterior"] for h in traced["hypotheses"]], dtype=float)
-    np.testing.assert_allclose(lp_traced, lp_plain, rtol=1e-8)
+    # The plain run is certified (hypotheses certainly below 1e-12 stop at a loose tolerance, every
+    # probability within its stated bound); the traced one solves all to 1e-8 nats (each
+    # log-likelihood within 2e-8 per action). The posteriors agree within the two bounds, and the
+    # hypotheses that hold mass have the same log posterior.
+    n = traced["data"]["actions"]
+    bound = plain["settings"]["probability_error"] + np.expm1(4e-8 * n)
+    assert plain["settings"]["probability_error"] <= 1e-6
+    assert np.max(np.abs(np.exp(lp_plain) - np.exp(lp_traced))) <= bound
+    held = np.exp(lp_plain) > 1e-9
+    np.testing.assert_allclose(lp_traced[held], lp_plain[held], rtol=1e-8)
     assert traced["beta_hat"] == pytest.approx(plain["beta_hat"], rel=1e-8)
     assert traced["settings"]["per_action"] is True
 

@@ -254,7 +254,10 @@ def infer(
         "birl, map and nuts.")] = 0,
     per_action: Annotated[bool, typer.Option(
         "--per-action", help="Update after every action and record the live estimates (trace).")] = False,
-    tol: Annotated[float, typer.Option(help="Soft value iteration tolerance (nats).")] = 1e-8,
+    tol: Annotated[float | None, typer.Option(
+        help="Soft value iteration tolerance (nats). Default (discrete): the one the demonstrations need "
+        "for every posterior probability to be within 1e-6 of the exact one, after hypotheses certainly "
+        "too unlikely to matter stop at a looser one.")] = None,
     chunk_size: Annotated[int | None, typer.Option(
         min=1, help="Hypotheses in flight at once in the solver (default: sized to the map).")] = None,
     method: Annotated[str, typer.Option(

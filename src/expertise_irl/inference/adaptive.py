@@ -46,6 +46,7 @@ from ..demos.trajectories import Trajectories
 from ..errors import InputError, plural
 from ..hypotheses import HypothesisSet
 from ..mdp import TabularMDP
+from .certified import bucket_size
 
 #: The coarse start of β: half-decade steps from 0.01 to 10 (7 values).
 START_BETAS = tuple(float(10.0 ** e) for e in np.arange(-2.0, 1.01, 0.5))
@@ -76,10 +77,6 @@ PRUNE_MASS = 1e-10
 START_THETAS_MAX = 100
 #: Default cap on the policy tables the final set holds (bytes).
 MAX_POLICY_BYTES = 2 * 2**30
-#: Each round's new hypotheses are solved in one batch padded to the next of 64 × (1, 2, 3, 4, 5, 6, 8,
-#: 10, 12, 16, …) (at most a third more than needed): the solver compiles once per batch shape, and
-#: JAX's cache keeps the few shapes across runs.
-SOLVE_BUCKET = 64
 #: A change smaller than this share of the posterior's spread (sd of ln β, of θ) counts as settled,
 #: whatever the tolerance: it is small next to what the data leave unknown.
 SPREAD_SHARE = 0.25
@@ -187,6 +184,10 @@ class _Pool:
     keys: dict[bytes, int] = field(default_factory=dict)
     sweeps: int = 0  # backups spent on the hypotheses solved (padding not counted)
     parent: dict[int, int] = field(default_factory=dict)  # a refined θ: the θ it was halved from
+    err: dict[tuple[int, int], float] = field(default_factory=dict)  # certified |log-likelihood error|
+    screened: set = field(default_factory=set)  # solved only to the screening tolerance (eliminated)
+    eliminated: int = 0
+    elimination_rounds: int = 0  # rounds that eliminated any (each ≤ ELIMINATION of the mass)
     limits: tuple[float, float] = BETA_LIMITS  # where β may go: BETA_LIMITS, widened to the start's range
     zero: tuple[int, ...] = ()  # components kept at 0
 
@@ -440,6 +441,10 @@ class Refined:
         warnings: a cap that stopped it, in one line each.
         log_likelihood: ``[H]`` each hypothesis' log-likelihood of the demonstrations (summed over
             the tasks).
+        log_likelihood_error: ``[H]`` a certified bound on each log-likelihood's error (0 for
+            known start log-likelihoods given by the caller).
+        eliminated: ``[H]`` whether the hypothesis stopped at the screening tolerance
+            (:mod:`.certified`): its posterior mass is certainly negligible.
     """
 
     hypotheses: HypothesisSet
@@ -448,16 +453,8 @@ class Refined:
     record: dict[str, Any]
     warnings: list[str]
     log_likelihood: np.ndarray | None = None
-
-
-def _buckets():
-    """64 × 1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, …: steps of at most a third."""
-    yield from (SOLVE_BUCKET, 2 * SOLVE_BUCKET, 3 * SOLVE_BUCKET)
-    scale = 1
-    while True:
-        for k in (4, 5, 6):
-            yield SOLVE_BUCKET * k * scale
-        scale *= 2
+    log_likelihood_error: np.ndarray | None = None
+    eliminated: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -486,41 +483,55 @@ def _solve_missing(pool: _Pool, tasks: _Tasks, solve_kwargs: dict, progress: Cal
 
     Each new hypothesis starts from the values of its nearest solved one (:func:`_warm_starts`),
     and the batch is padded to a bucket's size with solved hypotheses started from their own
-    values, which settle in a sweep or two; the pool's sweeps certify the tolerance whatever the
-    start, so only the number of sweeps depends on it.
+    values, which settle in a sweep or two. The solve is certified (:mod:`.certified`): a
+    hypothesis whose log-likelihood is certainly too low to matter, against this batch and the
+    best one solved before, stops at the screening tolerance; the others finish at the
+    tolerance the demonstrations need (or ``solve_kwargs["tol"]`` when given).
     """
-    from ..planning.soft_vi import solve
-    from ..planning.table_likelihood import log_likelihood
+    from .certified import certified_log_likelihoods
 
     pairs = pool.missing()
     if not pairs:
         return 0
-    n, G = len(pairs), len(tasks.maps)
-    bucket = next(b for b in _buckets() if b >= n)  # a few shapes, each compiled once
+    n = len(pairs)
+    bucket = bucket_size(n)  # a few shapes, each compiled once
     padded, starts = _warm_starts(pool, pairs, bucket)
     theta = np.array([pool.thetas[i] for i, _ in padded])
     beta = np.array([pool.betas[j] for _, j in padded])
-    ll, policies, values = np.zeros(n), [], []
-    for g, (mdp, shown) in enumerate(tasks.maps):
-        tick = None if progress is None else (
-            lambda d, t, g=g: progress(done + min((g * t + d) * n // (G * t), n), done + n))
-        v0 = None if starts is None else starts[g]
-        sol = solve(mdp, theta, beta, progress=tick, v_init=v0, **solve_kwargs)
-        lp = np.asarray(sol.log_policy)[:n]
-        pool.sweeps += int(np.sum(sol.iterations[:n]))
-        for trajs in shown:
-            ll += log_likelihood(lp, trajs.state, trajs.action)
-        if tasks.keep_policies:
-            policies.append(lp)
-        values.append(np.asarray(sol.value)[:n])
+    K = theta.shape[1]
+    tick = None if progress is None else (lambda d, t: progress(done + min(d * n // t, n), done + n))
+    cert = certified_log_likelihoods(tasks.maps, theta, beta, log_prior=_log_prior_of(pool, padded, K),
+                                     v_init=starts, best_known=_best_known(pool, K), progress=tick,
+                                     **solve_kwargs)
+    pool.sweeps += int(np.sum(cert.sweeps[:n]))
+    pool.eliminated += int(np.sum(cert.eliminated[:n]))
+    pool.elimination_rounds += bool(np.any(cert.eliminated[:n]))
     keep_values = _value_bytes(pool, tasks, n) <= WARM_VALUE_BYTES
     for k, key in enumerate(pairs):
-        pool.ll[key] = float(ll[k])
+        pool.ll[key] = float(cert.log_likelihood[k])
+        pool.err[key] = float(cert.error[k])
+        if cert.eliminated[k]:
+            pool.screened.add(key)
         if tasks.keep_policies:
-            pool.policy[key] = tuple(lp[k] for lp in policies)
+            pool.policy[key] = tuple(lp[k] for lp in cert.log_policy)
         if keep_values:
-            pool.value[key] = tuple(v[k] for v in values)
+            pool.value[key] = tuple(v[k] for v in cert.value)
     return len(pairs)
+
+
+def _log_prior_of(pool: _Pool, pairs: list[tuple[int, int]], K: int) -> np.ndarray:
+    """Each pair's log prior weight (its cells; :meth:`_Pool.log_weights`' formula)."""
+    return np.array([-((K - 1) * pool.theta_level[i] + pool.beta_level[j]) * math.log(2) for i, j in pairs])
+
+
+def _best_known(pool: _Pool, K: int) -> float:
+    """The largest certified lower bound of log-likelihood + log prior weight among the solved
+    active hypotheses (-inf when none)."""
+    keys = [(i, j) for i in pool.active_t for j in pool.active_b if (i, j) in pool.ll]
+    if not keys:
+        return -math.inf
+    prior = _log_prior_of(pool, keys, K)
+    return float(max(pool.ll[k] - pool.err.get(k, 0.0) + w for k, w in zip(keys, prior, strict=True)))
 
 
 def _warm_starts(pool: _Pool, pairs: list[tuple[int, int]], bucket: int
@@ -676,7 +687,7 @@ def refine_tasks(tasks: Sequence[tuple[TabularMDP, Trajectories]], start: Hypoth
         rounds.append(_round_entry(r, pool, st, n, pool.sweeps - s1, time.perf_counter() - t1,
                                    st.changes(prev)))
     return _finish(pool, K, rounds, {"converged": converged, "stop_reason": stop, "solved": solved,
-                                     "sweeps": pool.sweeps,
+                                     "sweeps": pool.sweeps, "eliminated": pool.eliminated,
                                      "pruned_mass": pruned, "seconds": time.perf_counter() - t0,
                                      "settings": settings}, warnings, keep_policies)
 
@@ -718,6 +729,17 @@ def _cap_warning(reason: str, rounds: int, changes: dict[str, float] | None) -> 
             f"{reason}{moved}; the posterior is the best so far")
 
 
+def _probability_error(pool: _Pool, pairs, pruned: float) -> float:
+    """A bound on the error of every probability of the final posterior: from the largest certified
+    log-likelihood error of a hypothesis not eliminated (each probability within e^{2ε} − 1), plus
+    the mass the eliminated (≤ 1e-12 a round) and pruned hypotheses may hold."""
+    from .certified import ELIMINATION
+
+    errs = [pool.err.get(k, 0.0) for k in pairs if k not in pool.screened]
+    eps = max(errs, default=0.0)
+    return math.expm1(2 * eps) + ELIMINATION * pool.elimination_rounds + pruned
+
+
 def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: list[str],
             keep_policies: bool = True) -> Refined:
     """The final set, its policies (when kept), prior and log-likelihoods, and the refinement's record."""
@@ -734,6 +756,7 @@ def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: l
     logw = (lt[:, None] + lb[None, :]).ravel()
     prior = np.exp(logw - logw.max())
     s = info.pop("settings")
+    info["probability_error"] = _probability_error(pool, pairs, info.get("pruned_mass", 0.0))
     record = {**info, "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
               "rounds": rounds, "betas": betas.tolist(),
               "tolerances": {"beta": s.tol_beta, "theta": s.tol_theta, "beta_interval": s.tol_interval,
@@ -743,4 +766,6 @@ def _finish(pool: _Pool, K: int, rounds: list, info: dict[str, Any], warnings: l
               "prior": "each θ weighs its lattice cell (2^-(K-1) per halving of its spacing), each β its "
                        "cell in log β (1/2 per halving): uniform on the simplex and log-uniform in β over "
                        "the range the set covers"}
-    return Refined(hyp, log_policy, prior, record, warnings, np.array([pool.ll[k] for k in pairs]))
+    errors = np.array([pool.err.get(k, 0.0) for k in pairs])
+    return Refined(hyp, log_policy, prior, record, warnings, np.array([pool.ll[k] for k in pairs]), errors,
+                   np.array([k in pool.screened for k in pairs]))

@@ -91,7 +91,7 @@ class DiscreteOptions:
     betas: str | None = None  # a preset or comma-separated temperatures (None: adaptive or paper-sim)
     sample_thetas: int | None = None  # use k directions of Θ drawn with the seed
     per_action: bool = False  # record the estimate after every action (a trace)
-    tol: float = 1e-8  # soft value iteration tolerance (nats)
+    tol: float | None = None  # solver tolerance (nats); None: the one the demonstrations need (certified)
     chunk_size: int | None = None  # hypotheses in flight in the solver
     model: str = DEFAULT_MODEL
     expertise: str = DEFAULT_EXPERTISE  # or "changing": β_e per episode (inference.changing)
@@ -100,7 +100,7 @@ class DiscreteOptions:
     max_seconds: float | None = None  # refinement's time cap: no round starts after it
 
     def __post_init__(self) -> None:
-        if not (0 < self.tol <= MAX_TOL):
+        if self.tol is not None and not (0 < self.tol <= MAX_TOL):
             raise OptionError(f"{{tol}} must be > 0 and at most {MAX_TOL:g} nats, got {self.tol:g}", "tol")
         _check_expertise(self.expertise)
         if self.max_hypotheses < 1:
@@ -233,6 +233,7 @@ class DiscreteFit(NamedTuple):
     trace_index: tuple[np.ndarray, np.ndarray]  # episode and step of each traced action
     changing: Any = None  # --expertise changing: (ChangingPosterior, episode labels)
     refined: Any = None  # the refined set's record and warnings (inference.adaptive.Refined)
+    certified: Any = None  # a fixed set's certified solve (inference.certified.Certified.record())
 
     @property
     def result(self) -> DiscreteFit:
@@ -257,14 +258,23 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
     from .belief import DiscreteBelief
 
     hyp = _setup_discrete(mdp, opts, seed) if setup is None else setup
-    refined = None
+    refined = certified = None
     if opts.refines:
         refined = refined_set(mdp, trajs, hyp, opts, progress)
         hyp = refined.hypotheses
         start = DiscreteBelief.from_log_policy(hyp, refined.log_policy, prior=refined.prior)
+    elif opts.per_action or opts.expertise == Expertise.CHANGING:
+        # every hypothesis matters somewhere (early in the trace, in some episode): all to one tolerance
+        from ..planning.soft_vi import DEFAULT_TOL
+
+        start = DiscreteBelief.from_mdp(mdp, hyp, tol=opts.tol or DEFAULT_TOL, chunk_size=opts.chunk_size,
+                                        model=opts.model, progress=progress)
     else:
-        start = DiscreteBelief.from_mdp(mdp, hyp, tol=opts.tol, chunk_size=opts.chunk_size, model=opts.model,
-                                        progress=progress)
+        from .certified import certified_log_likelihoods
+
+        cert = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta, tol=opts.tol,
+                                         chunk_size=opts.chunk_size, model=opts.model, progress=progress)
+        start, certified = DiscreteBelief.from_log_policy(hyp, cert.log_policy[0]), cert.record()
     post = start.update(trajs, per_action=opts.per_action)
     trace = start.trace(trajs) if opts.per_action else None
     changing = None
@@ -281,7 +291,7 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
             step_ll = np.asarray(start.log_policy)[:, trajs.state, trajs.action].T
             live = filtered_by_action(step_ll, index, hyp)
         changing = (cp, list(trajs.episode_ids), live)
-    return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing, refined)
+    return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing, refined, certified)
 
 
 def refined_set(mdp, trajs, start, opts: DiscreteOptions, progress: Progress = None):
@@ -476,11 +486,24 @@ def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
             "prior": fit.refined.record["prior"] if refined else "uniform",
             "model": opts.model, "per_action": opts.per_action, "tol": opts.tol,
-            "expertise": opts.expertise,
+            **_certified_settings(fit), "expertise": opts.expertise,
             **({"epsilons": list(fit.changing[0].epsilons.tolist()),
                 "epsilon_prior": "P(ε = 0) = 1/2, the rest uniform over ε > 0",
                 "chain": "β_1 uniform; stay 1 − ε, else a neighbouring grid value (ε/2 each side)"}
                if fit.changing is not None else {})}
+
+
+def _certified_settings(fit: DiscreteFit) -> dict[str, Any]:
+    """What the certified solve guarantees (:mod:`.certified`): the bound on every probability
+    and how many hypotheses stopped at the screening tolerance (nothing for a solve to one tolerance)."""
+    if fit.refined is not None:
+        rec = fit.refined.record
+        return {"probability_error": rec.get("probability_error"), "eliminated": rec.get("eliminated")}
+    if fit.certified is not None:
+        c = fit.certified
+        return {"probability_error": c["probability_error"], "eliminated": c["eliminated"],
+                "solver_tol": c["tol"], "screen_tol": c["screen_tol"]}
+    return {}
 
 
 def _continuous_settings(fit, opts) -> dict[str, Any]:

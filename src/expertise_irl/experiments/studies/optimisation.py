@@ -279,7 +279,7 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     def birl(variant: str):
         def fit(tr, n_iter, rng):
             opts = BIRLOptions(iterations=n_iter, variant=variant, **common)
-            return get_method("birl").fit(mdp, tr, opts, rng)
+            return get_method("birl").fit(mdp, tr, opts, rng).result
 
         def one(n: int):
             r, t = _timed(lambda: fit(trajs.first(n), cfg.birl_iterations,
@@ -291,12 +291,12 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     def map_one(n: int):
         opts = MAPOptions(starts=cfg.map_starts, **common)
         r, t = _timed(lambda: get_method("map").fit(mdp, trajs.first(n), opts,
-                                                    np.random.default_rng([seeds["map"], n])))
+                                                    np.random.default_rng([seeds["map"], n])).result)
         return r.theta, r.beta, t, {}
 
     def nuts_fit(tr, warmup, samples, chains, s):
         opts = NUTSOptions(chains=chains, warmup=warmup, samples=samples, **common)
-        return get_method("nuts").fit(mdp, tr, opts, s)
+        return get_method("nuts").fit(mdp, tr, opts, s).result
 
     def nuts_one(n: int):
         r, t = _timed(lambda: nuts_fit(trajs.first(n), cfg.nuts_warmup, cfg.nuts_samples,
