@@ -91,9 +91,10 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
     order = study_order(rows)
     n, K = len(rows), len(names)
     ids = [str(rows[i].get("participant", "")) for i in order]
-    col = {k: np.array([_num(rows[i].get(k)) for i in order]) for k in ("beta_hat", "beta_median", "beta_q05",
-                                                                         "beta_q95")}
-    theta = np.array([[_num(rows[i].get(f"theta_{f}")) for f in names] for i in order]).reshape(n, K)
+    col = {k: np.array([_num(rows[i].get(k)) for i in order])
+           for k in ("beta_hat", "beta_median", "beta_q05", "beta_q95")}
+    theta = np.array([[_num(rows[i].get(f"theta_{f}")) for f in names]
+                      for i in order]).reshape(n, K)
     row, font, step = _row_geometry(max(n, 1))
     label_w = min(max(len(s) for s in ids) if ids else 4, 24) * font * 0.62 / 72 + 0.25
     top, bottom = 1.25, 0.75  # title, legend and top ticks; bottom ticks and label
@@ -107,13 +108,29 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
     ax.set_gid("study-beta")
     axh = fig.add_axes([(label_w + beta_w + gap) / W, bottom / H, heat_w / W, plot_h / H], sharey=ax)
     axh.set_gid("study-theta")
-    y = np.arange(n)
-    # β: intervals, medians, estimates
+    lo, hi = _beta_limits(col, n)
+    _draw_beta_rows(ax, col, row)
+    _beta_axis(ax, lo, hi)
+    _row_labels(ax, ids, step, font)
+    _draw_theta_heatmap(fig, axh, theta, names, row,
+                        [(label_w + beta_w + gap) / W, 1 - 0.42 / H, heat_w / W, 0.1 / H])
+    _header(fig, n, int(np.isfinite(col["beta_hat"]).sum()), title, step, label_w / W, H)
+    return fig
+
+
+def _beta_limits(col: dict[str, np.ndarray], n: int) -> tuple[float, float]:
+    """The β axis: every positive value of ``col`` with room on both sides, a decade at least."""
     vals = np.concatenate([v[np.isfinite(v) & (v > 0)] for v in col.values()]) if n else np.array([])
     lo, hi = (float(vals.min()) / 1.6, float(vals.max()) * 1.6) if vals.size else (1e-2, 1e1)
     if hi / lo < 10:
         mid = math.sqrt(lo * hi)
         lo, hi = mid / math.sqrt(10), mid * math.sqrt(10)
+    return lo, hi
+
+
+def _draw_beta_rows(ax, col: dict[str, np.ndarray], row: float) -> None:
+    """Per row (``row`` inches high): the 90% interval, the median (|) and β̂ (●)."""
+    y = np.arange(len(col["beta_hat"]))
     q05, q95 = col["beta_q05"], col["beta_q95"]
     ok = np.isfinite(q05) & np.isfinite(q95) & (q05 > 0)
     lw = max(1.0, min(4.0, 0.45 * row * 72))
@@ -126,6 +143,10 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
     hat = np.where(col["beta_hat"] > 0, col["beta_hat"], np.nan)
     ax.plot(hat, y, ls="", marker="o", ms=ms, color=HAT_COLOR, mec="none" if thin else "white", mew=0.4,
             zorder=4, gid="beta-hat")
+
+
+def _beta_axis(ax, lo: float, hi: float) -> None:
+    """The log β axis from ``lo`` to ``hi``: ticks top and bottom, the groups' boundaries and names."""
     ax.set_xscale("log")
     ax.set_xlim(lo, hi)
     ticks = _log_ticks(lo, hi)
@@ -145,6 +166,11 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
                     xytext=(0, 22), textcoords="offset points", ha="center", va="bottom", fontsize=8,
                     color="#5c5f66", annotation_clip=False)
     ax.set_xlabel("β (log scale; low = expert)", fontsize=8.5)
+
+
+def _row_labels(ax, ids: list[str], step: int, font: float) -> None:
+    """Rows top down, every ``step``-th labelled with its participant; a light grid when few."""
+    n = len(ids)
     ax.set_ylim(n - 0.5, -0.5)  # first (most expert) on top
     shown = list(range(0, n, step))
     ax.yaxis.set_major_locator(FixedLocator(shown))
@@ -154,7 +180,13 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
         ax.grid(axis="y", color="#eeeeee", lw=0.5, zorder=0)
     maps.tidy(ax)
     ax.tick_params(axis="x", labelsize=8)
-    # θ̂ heat map
+
+
+def _draw_theta_heatmap(fig: Figure, axh, theta: np.ndarray, names: list[str], row: float,
+                        cbar_rect: list[float]) -> None:
+    """θ̂ as a heat map (``[rows, K]``; grey where not a number), values written in tall rows,
+    and its colour bar at ``cbar_rect``."""
+    n, K = theta.shape
     cmap = mpl.colormaps["viridis"].with_extremes(bad="#d0d0d0")
     finite = theta[np.isfinite(theta)]
     vmin, vmax = min(0.0, float(finite.min(initial=0.0))), max(1.0, float(finite.max(initial=1.0)))
@@ -174,25 +206,28 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
         for lab in axh.get_xticklabels():
             lab.set_rotation_mode("anchor")
     axh.set_ylim(n - 0.5, -0.5)
-    cax = fig.add_axes([(label_w + beta_w + gap) / W, 1 - 0.42 / H, heat_w / W, 0.1 / H])
+    cax = fig.add_axes(cbar_rect)
     cb = fig.colorbar(im, cax=cax, orientation="horizontal")
     cb.ax.tick_params(labelsize=8, length=2)
     cb.ax.xaxis.set_major_locator(FixedLocator(np.linspace(vmin, vmax, 3)))
     cb.ax.set_title("θ̂ (grey: none)", fontsize=8.5, pad=3)
-    n_est = int(np.isfinite(col["beta_hat"]).sum())
+
+
+def _header(fig: Figure, n: int, n_est: int, title: str | None, step: int, x: float, H: float) -> None:
+    """The title (participants, those without β̂), the legend below it at figure fraction ``x``,
+    and, when not every row is labelled, a note at the bottom (``H``: figure height, inches)."""
     head = title or "Study overview"
-    fig.text(label_w / W, 1 - 0.12 / H, f"{head}: {n} participant{'s' if n != 1 else ''}"
+    fig.text(x, 1 - 0.12 / H, f"{head}: {n} participant{'s' if n != 1 else ''}"
              + (f" ({n - n_est} without β̂)" if n_est < n else ""), fontsize=11, fontweight="bold", va="top")
     handles = [Line2D([], [], ls="", marker="o", ms=6, color=HAT_COLOR, label="β̂ (mean)"),
                Line2D([], [], ls="", marker="|", ms=8, mew=1.2, color=MEDIAN_COLOR, label="median"),
                Line2D([], [], color=INTERVAL_COLOR, lw=3, label="90% interval"),
                Line2D([], [], color="#868e96", lw=0.8, ls="--", label="expertise group boundary")]
-    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(label_w / W, 1 - 0.4 / H), ncol=4,
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(x, 1 - 0.4 / H), ncol=4,
                frameon=False, fontsize=8, borderaxespad=0.0, columnspacing=1.2)
     if step > 1:
-        fig.text(label_w / W, 0.1 / H, f"{n} rows in β̂ order; one label every {step} rows", fontsize=8,
+        fig.text(x, 0.1 / H, f"{n} rows in β̂ order; one label every {step} rows", fontsize=8,
                  color="#555555", va="bottom")
-    return fig
 
 
 def render_study_png(path: str | Path, rows: Sequence[dict[str, Any]], feature_names: Sequence[str], *,

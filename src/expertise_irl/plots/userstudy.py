@@ -634,79 +634,121 @@ def _draw_beta(ax: Axes, doc: dict[str, Any], legend_y: float) -> None:
     marg = (doc.get("marginals") or {}).get("beta") if isinstance(doc.get("marginals"), dict) else None
     samples = doc.get("samples") if isinstance(doc.get("samples"), dict) else {}
     draws = samples.get("beta")
-    handles: list = []
-    grid = None
     if marg:
-        v = np.asarray(marg["values"], dtype=float)
-        p = np.asarray(marg["probabilities"], dtype=float)
-        order = np.argsort(v)
-        v, p = v[order], p[order] / p.sum()
-        log = bool((v > 0).all())
-        if len(v) > 1:
-            mids = np.sqrt(v[1:] * v[:-1]) if log else (v[1:] + v[:-1]) / 2
-            first = v[0] ** 2 / mids[0] if log else 2 * v[0] - mids[0]
-            last = v[-1] ** 2 / mids[-1] if log else 2 * v[-1] - mids[-1]
-            edges = np.concatenate([[first], mids, [last]])
-        else:
-            edges = np.array([v[0] / 3, v[0] * 3]) if log else np.array([v[0] - 1, v[0] + 1])
-        # bars 70% of their cell (in log space on a log axis)
-        if log:
-            le, re = np.log(edges[:-1]), np.log(edges[1:])
-            left, right = np.exp(le + 0.15 * (re - le)), np.exp(re - 0.15 * (re - le))
-        else:
-            left, right = edges[:-1] + 0.15 * np.diff(edges), edges[1:] - 0.15 * np.diff(edges)
-        bars = ax.bar(left, p, width=right - left, align="edge", color=POST_COLOR, edgecolor="#2f4b7c",
-                      lw=0.5, zorder=2, label="marginal posterior")
-        for b in bars:
-            b.set_gid("beta-bar")
-        handles.append(Patch(fc=POST_COLOR, ec="#2f4b7c", label="marginal posterior P(β)"))
-        lo, hi = float(edges[0]), float(edges[-1])
-        grid = v
-        ax.set_ylim(0, max(float(p.max()) * 1.18, 0.05))
-        ax.set_ylabel("posterior probability", fontsize=8.5)
-        kind = f"marginal posterior on {len(v)} grid values"
+        panel = _beta_bars(ax, marg)
     elif draws is not None and len(draws):
-        x = np.asarray(draws, dtype=float)
-        x = x[np.isfinite(x)]
-        log = bool(len(x)) and bool((x > 0).all())
-        nb = min(40, max(8, int(np.sqrt(len(x))) + 1))
-        if not len(x):
-            lo, hi = 1e-2, 1e1
-        elif x.min() == x.max():
-            lo, hi = (x[0] / 10, x[0] * 10) if log else (x[0] - 1, x[0] + 1)
-            bins = np.array([x[0] / 1.04, x[0] * 1.04]) if log else np.array([x[0] - 0.02, x[0] + 0.02])
-        else:
-            bins = np.geomspace(x.min(), x.max(), nb + 1) if log else np.linspace(x.min(), x.max(), nb + 1)
-            pad = 0.05 * np.ptp(x)
-            lo, hi = (x.min() / 1.3, x.max() * 1.3) if log else (x.min() - pad, x.max() + pad)
-        if len(x):
-            h, _, patches = ax.hist(x, bins=bins, weights=np.full(len(x), 1 / len(x)), color=POST_COLOR,
-                                    alpha=0.9, edgecolor="white", lw=0.3, zorder=2)
-            for b in patches:
-                b.set_gid("beta-hist")
-            ax.set_ylim(0, max(float(np.max(h)) * 1.18, 0.05))
-        handles.append(Patch(fc=POST_COLOR, label=f"{len(x)} draws"))
-        ax.set_ylabel("share of draws", fontsize=8.5)
-        kind = "histogram of the draws"
+        panel = _beta_hist(ax, draws)
     else:
-        b = float(doc["beta_hat"])
-        log = b > 0
-        lo, hi = (min(1e-2, b / 10), max(1e1, b * 10)) if log else (b - 1, b + 1)
-        ax.plot([b], [0.5], ls="", marker="D", ms=9, color="#c0392b", zorder=4, gid="beta-point")
-        handles.append(Line2D([], [], ls="", marker="D", ms=7, color="#c0392b", label=f"β̂ = {b:.3g}"))
-        ax.set_ylim(0, 1)
-        ax.set_yticks([])
-        ax.text(0.5, 0.8, "point estimate: no posterior distribution", transform=ax.transAxes, ha="center",
-                fontsize=8.5, color="#555555")
-        kind = "MAP point estimate"
-    if log:
+        panel = _beta_point(ax, float(doc["beta_hat"]))
+    if panel.log:
         ax.set_xscale("log")
-    ax.set_xlim(lo, hi)
+    ax.set_xlim(panel.lo, panel.hi)
+    _beta_summary_marks(ax, s, panel.handles, lines=bool(marg or (draws is not None and len(draws))))
+    _beta_ticks(ax, panel.lo, panel.hi, panel.log, panel.grid)
+    ax.set_xlabel("β, expertise temperature (log scale; low = expert)" if panel.log else "β (low = expert)",
+                  fontsize=8.5)
+    ax.set_title(f"β: {panel.kind}", fontsize=9)
+    maps.tidy(ax)
+    ax.tick_params(labelsize=8)
+    pos = ax.get_position()
+    leg = ax.legend(handles=panel.handles, loc="upper center",
+                    bbox_to_anchor=(pos.x0 + pos.width / 2, legend_y),
+                    bbox_transform=ax.figure.transFigure, ncol=min(len(panel.handles), 3), frameon=False,
+                    fontsize=8, handlelength=1.6, columnspacing=1.2, borderaxespad=0.0)
+    leg.set_gid("beta-legend")
+
+
+@dataclass
+class _BetaPanel:
+    """What the β panel's distribution set: its x range, whether it is on a log axis, the grid of
+    a marginal (tick values), the words for the title and the legend handles so far."""
+
+    lo: float
+    hi: float
+    log: bool
+    kind: str
+    handles: list
+    grid: np.ndarray | None = None
+
+
+def _beta_bars(ax: Axes, marg: dict[str, Any]) -> _BetaPanel:
+    """The marginal posterior of β: one bar per grid value, 70% of its cell (in log space on a
+    log axis), gid ``beta-bar``."""
+    v = np.asarray(marg["values"], dtype=float)
+    p = np.asarray(marg["probabilities"], dtype=float)
+    order = np.argsort(v)
+    v, p = v[order], p[order] / p.sum()
+    log = bool((v > 0).all())
+    if len(v) > 1:
+        mids = np.sqrt(v[1:] * v[:-1]) if log else (v[1:] + v[:-1]) / 2
+        first = v[0] ** 2 / mids[0] if log else 2 * v[0] - mids[0]
+        last = v[-1] ** 2 / mids[-1] if log else 2 * v[-1] - mids[-1]
+        edges = np.concatenate([[first], mids, [last]])
+    else:
+        edges = np.array([v[0] / 3, v[0] * 3]) if log else np.array([v[0] - 1, v[0] + 1])
+    if log:
+        le, re = np.log(edges[:-1]), np.log(edges[1:])
+        left, right = np.exp(le + 0.15 * (re - le)), np.exp(re - 0.15 * (re - le))
+    else:
+        left, right = edges[:-1] + 0.15 * np.diff(edges), edges[1:] - 0.15 * np.diff(edges)
+    bars = ax.bar(left, p, width=right - left, align="edge", color=POST_COLOR, edgecolor="#2f4b7c",
+                  lw=0.5, zorder=2, label="marginal posterior")
+    for b in bars:
+        b.set_gid("beta-bar")
+    handles: list = [Patch(fc=POST_COLOR, ec="#2f4b7c", label="marginal posterior P(β)")]
+    ax.set_ylim(0, max(float(p.max()) * 1.18, 0.05))
+    ax.set_ylabel("posterior probability", fontsize=8.5)
+    return _BetaPanel(float(edges[0]), float(edges[-1]), log,
+                      f"marginal posterior on {len(v)} grid values", handles, grid=v)
+
+
+def _beta_hist(ax: Axes, draws) -> _BetaPanel:
+    """A histogram of the finite draws of β (shares, gid ``beta-hist``); log bins when all are > 0."""
+    x = np.asarray(draws, dtype=float)
+    x = x[np.isfinite(x)]
+    log = bool(len(x)) and bool((x > 0).all())
+    nb = min(40, max(8, int(np.sqrt(len(x))) + 1))
+    if not len(x):
+        lo, hi = 1e-2, 1e1
+    elif x.min() == x.max():
+        lo, hi = (x[0] / 10, x[0] * 10) if log else (x[0] - 1, x[0] + 1)
+        bins = np.array([x[0] / 1.04, x[0] * 1.04]) if log else np.array([x[0] - 0.02, x[0] + 0.02])
+    else:
+        bins = np.geomspace(x.min(), x.max(), nb + 1) if log else np.linspace(x.min(), x.max(), nb + 1)
+        pad = 0.05 * np.ptp(x)
+        lo, hi = (x.min() / 1.3, x.max() * 1.3) if log else (x.min() - pad, x.max() + pad)
+    if len(x):
+        h, _, patches = ax.hist(x, bins=bins, weights=np.full(len(x), 1 / len(x)), color=POST_COLOR,
+                                alpha=0.9, edgecolor="white", lw=0.3, zorder=2)
+        for b in patches:
+            b.set_gid("beta-hist")
+        ax.set_ylim(0, max(float(np.max(h)) * 1.18, 0.05))
+    ax.set_ylabel("share of draws", fontsize=8.5)
+    return _BetaPanel(lo, hi, log, "histogram of the draws", [Patch(fc=POST_COLOR, label=f"{len(x)} draws")])
+
+
+def _beta_point(ax: Axes, b: float) -> _BetaPanel:
+    """A point estimate of β (MAP): one diamond, gid ``beta-point``, and a note that there is no
+    distribution."""
+    log = b > 0
+    lo, hi = (min(1e-2, b / 10), max(1e1, b * 10)) if log else (b - 1, b + 1)
+    ax.plot([b], [0.5], ls="", marker="D", ms=9, color="#c0392b", zorder=4, gid="beta-point")
+    handles: list = [Line2D([], [], ls="", marker="D", ms=7, color="#c0392b", label=f"β̂ = {b:.3g}")]
+    ax.set_ylim(0, 1)
+    ax.set_yticks([])
+    ax.text(0.5, 0.8, "point estimate: no posterior distribution", transform=ax.transAxes, ha="center",
+            fontsize=8.5, color="#555555")
+    return _BetaPanel(lo, hi, log, "MAP point estimate", handles)
+
+
+def _beta_summary_marks(ax: Axes, s: dict[str, float | None], handles: list, *, lines: bool) -> None:
+    """The 90% interval of ``s`` shaded and, when ``lines`` (a distribution is drawn), its mean and
+    median as vertical lines; each appends its legend handle to ``handles``."""
     q05, q95 = s["q05"], s["q95"]
     if q05 is not None and q95 is not None and q95 >= q05:
         ax.axvspan(q05, q95, color=BAND_COLOR, alpha=0.5, lw=0, zorder=0, gid="beta-interval")
         handles.append(Patch(fc=BAND_COLOR, alpha=0.5, label=f"90% interval [{q05:.3g}, {q95:.3g}]"))
-    if marg or (draws is not None and len(draws)):
+    if lines:
         if s["mean"] is not None:
             ax.axvline(s["mean"], color=MEAN_COLOR, lw=1.3, ls="--", zorder=3, gid="beta-mean")
             handles.append(Line2D([], [], color=MEAN_COLOR, lw=1.3, ls="--",
@@ -715,17 +757,6 @@ def _draw_beta(ax: Axes, doc: dict[str, Any], legend_y: float) -> None:
             ax.axvline(s["median"], color=MEDIAN_COLOR, lw=1.3, ls=":", zorder=3, gid="beta-median")
             handles.append(Line2D([], [], color=MEDIAN_COLOR, lw=1.3, ls=":",
                                   label=f"median {s['median']:.3g}"))
-    _beta_ticks(ax, lo, hi, log, grid)
-    ax.set_xlabel("β, expertise temperature (log scale; low = expert)" if log else "β (low = expert)",
-                  fontsize=8.5)
-    ax.set_title(f"β: {kind}", fontsize=9)
-    maps.tidy(ax)
-    ax.tick_params(labelsize=8)
-    pos = ax.get_position()
-    leg = ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(pos.x0 + pos.width / 2, legend_y),
-                    bbox_transform=ax.figure.transFigure, ncol=min(len(handles), 3), frameon=False,
-                    fontsize=8, handlelength=1.6, columnspacing=1.2, borderaxespad=0.0)
-    leg.set_gid("beta-legend")
 
 
 def _interval_of(values, probs) -> tuple[float, float, float]:

@@ -177,8 +177,9 @@ def changing_markdown(rows: Sequence[dict[str, Any]]) -> str:
               "| participant | log BF | P(changing) | P(β falls) | E[log β_last/β_first] |",
               "|---|---|---|---|---|"]
     for r in usable:
-        lines.append(f"| {r['participant']} | {_num(r['changing_log_bf'], 3)} | {_num(r['p_changing'])} | "
-                     f"{_num(r['trend_p_falls'], 2)} | {r['trend_log_ratio']:+.2f} |")
+        lines.append(f"| {r['participant']} | {_num(r['changing_log_bf'], 3)} | "
+                     f"{_num(r['p_changing'])} | {_num(r['trend_p_falls'], 2)} | "
+                     f"{r['trend_log_ratio']:+.2f} |")
     return "\n".join(lines) + "\n\n"
 
 
@@ -232,6 +233,22 @@ def study_markdown(
     Tables V–VI where the maps are floor plans, the modes, the held-out check, what ingestion
     changed, ``sections`` (e.g. ``--group-by``'s) and each participant's warnings."""
     warnings = warnings or {}
+    lines = _head_lines(rows, feature_names, method, n_hypotheses, title, share, warnings, grid, betas)
+    lines += _estimate_lines(rows, feature_names)
+    lines += _path_lines(rows, feature_names)
+    lines += _plan_lines(rows)
+    lines += _optimal_lines(rows)
+    lines += _mode_lines(modes)
+    lines += _heldout_unavailable_lines(heldout_unavailable)
+    lines += _ingestion_lines(rows)
+    if sections:
+        lines += ["", sections.strip("\n")]
+    lines += _warning_lines(warnings)
+    return "\n".join(lines) + "\n"
+
+
+def _head_lines(rows, feature_names, method, n_hypotheses, title, share, warnings, grid, betas) -> list[str]:
+    """The title, the method and its hypotheses, the β grid and the count of warnings."""
     feats = ", ".join(feature_names)
     lines = [f"# {title}", ""]
     what = (f"{n_hypotheses} hypotheses; fewer for a participant whose constant features are kept at 0"
@@ -246,7 +263,12 @@ def study_markdown(
         lines += [f"β grid: {', '.join(f'{b:g}' for b in betas)} ({source}).", ""]
     lines += [f"**Warnings: {n_warn}** for {sum(1 for w in warnings.values() if w)} of {len(rows)} "
               "participant(s) (listed under Warnings below).", ""]
-    lines += [
+    return lines
+
+
+def _estimate_lines(rows: Sequence[dict[str, Any]], feature_names: Sequence[str]) -> list[str]:
+    """``## Estimates``: β̂, its median, geometric mean and interval, θ̂, the groups and held-out."""
+    lines = [
         "## Estimates",
         "",
         "β̂ is the posterior mean; the median, the geometric mean exp E[log β] and the 90% interval "
@@ -264,12 +286,19 @@ def study_markdown(
         theta = (", ".join(f"{f} {r[f'theta_{f}']:.2f}" for f in feature_names if _has(r, f"theta_{f}"))
                  or "per task")
         groups = " / ".join(_num(r[c], 2) for c in GROUP_COLUMNS) if _has(r, "p_high") else ""
-        band = f"[{_num(r['beta_q05'])}, {_num(r['beta_q95'])}]" if _has(r, "beta_q05") else ""
+        band = (f"[{_num(r['beta_q05'])}, {_num(r['beta_q95'])}]"
+                if _has(r, "beta_q05") else "")
         held = (f"{r['heldout_log_likelihood_per_action']:.3f} ({r['heldout_split']})"
                 if _has(r, "heldout_log_likelihood_per_action") else "n/a")
-        lines.append(f"| {r['participant']} | {_num(r['beta_hat'])} | {_num(r['beta_median'])} | "
-                     f"{_num(r['beta_geomean'])} | {band} | {theta} | {groups} | {held} |")
-    lines += [
+        lines.append(f"| {r['participant']} | {_num(r['beta_hat'])} | "
+                     f"{_num(r['beta_median'])} | {_num(r['beta_geomean'])} | {band} | "
+                     f"{theta} | {groups} | {held} |")
+    return lines
+
+
+def _path_lines(rows: Sequence[dict[str, Any]], feature_names: Sequence[str]) -> list[str]:
+    """``## Observed paths``: every world's moves, goals, cost under θ̂ and feature sums."""
+    lines = [
         "",
         "## Observed paths",
         "",
@@ -283,24 +312,36 @@ def study_markdown(
     for r in rows:
         lines.append(f"| {r['participant']} | {r['path_length']} | {r['goal_reached']}/{r['episodes']} | "
                      f"{_num(r['steps_to_goal'])} | {_num(r['cost_theta_hat'])} | "
-                     + " | ".join(_num(r.get(f"feature_{f}", math.nan), 6) for f in feature_names) + " |")
+                     + " | ".join(_num(r.get(f"feature_{f}", math.nan), 6) for f in feature_names)
+                     + " |")
+    return lines
+
+
+def _plan_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """Table V, the observed trajectories, for the rows on floor plans (none: no lines)."""
     plan_rows = [r for r in rows if _has(r, "path_cost")]
-    if plan_rows:
-        lines += [
-            "",
-            "## Observed trajectories on floor plans (Table V)",
-            "",
-            "| participant | path length | path cost | wrong road direction "
-            "| restricted moves | road usage | direction changes |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        for r in plan_rows:
-            lines.append(
-                f"| {r['participant']} | {r['path_length']} | "
-                f"{r['path_cost']} | {r['wrong_road_direction']} | {r['restricted_moves']} | "
-                f"{r['road_cells']}/{r['path_length']} | {r['direction_changes']} |"
-            )
-    lines += [
+    if not plan_rows:
+        return []
+    lines = [
+        "",
+        "## Observed trajectories on floor plans (Table V)",
+        "",
+        "| participant | path length | path cost | wrong road direction "
+        "| restricted moves | road usage | direction changes |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in plan_rows:
+        lines.append(
+            f"| {r['participant']} | {r['path_length']} | "
+            f"{r['path_cost']} | {r['wrong_road_direction']} | {r['restricted_moves']} | "
+            f"{r['road_cells']}/{r['path_length']} | {r['direction_changes']} |"
+        )
+    return lines
+
+
+def _optimal_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """Table VI: the optimal trajectories under θ̂ (``n/a`` where the map is not a floor plan)."""
+    lines = [
         "",
         "## Optimal trajectories, β = 0.001 with θ̂ (Table VI)",
         "",
@@ -315,26 +356,43 @@ def study_markdown(
                  if _has(r, "optimal_path_cost") else ["n/a"] * 5)
         lines.append(f"| {r['participant']} | {r['optimal_path_length']} | " + " | ".join(cells)
                      + f" | {r['optimal_reached_goal']}/{r['episodes']} |")
+    return lines
+
+
+def _mode_lines(modes: dict[str, list]) -> list[str]:
+    """The participants whose posterior has more than one mode, with each mode (none: no lines)."""
     several = {p: m for p, m in modes.items() if len(m) > 1}
-    if several:
-        lines += ["", "## Participants whose posterior has several modes", ""]
-        for p, ms in several.items():
-            parts = [
-                f"θ = [{', '.join(f'{x:.2f}' for x in m['theta'])}], β = {m['beta']:g} "
-                f"(p = {m['probability']:.2f})"
-                for m in ms
-            ]
-            lines.append(f"- {p}: " + "; ".join(parts))
+    if not several:
+        return []
+    lines = ["", "## Participants whose posterior has several modes", ""]
+    for p, ms in several.items():
+        parts = [
+            f"θ = [{', '.join(f'{x:.2f}' for x in m['theta'])}], β = {m['beta']:g} "
+            f"(p = {m['probability']:.2f})"
+            for m in ms
+        ]
+        lines.append(f"- {p}: " + "; ".join(parts))
+    return lines
+
+
+def _heldout_unavailable_lines(heldout_unavailable: dict[str, str] | None) -> list[str]:
+    """The participants without a held-out check, grouped by the reason (none: no lines)."""
     unavailable = {p: why for p, why in (heldout_unavailable or {}).items() if why}
-    if unavailable:
-        lines += ["", "## Held-out check not available", ""]
-        by_reason: dict[str, list[str]] = {}
-        for p, why in unavailable.items():
-            by_reason.setdefault(why, []).append(p)
-        for why, ps in by_reason.items():
-            lines.append(f"- {', '.join(ps)}: {why}")
+    if not unavailable:
+        return []
+    lines = ["", "## Held-out check not available", ""]
+    by_reason: dict[str, list[str]] = {}
+    for p, why in unavailable.items():
+        by_reason.setdefault(why, []).append(p)
+    for why, ps in by_reason.items():
+        lines.append(f"- {', '.join(ps)}: {why}")
+    return lines
+
+
+def _ingestion_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """``## Ingestion``: the gaps filled and samples snapped per participant."""
     fixed = [r for r in rows if r["filled_gaps"] or r["snapped_samples"]]
-    lines += ["", "## Ingestion", ""]
+    lines = ["", "## Ingestion", ""]
     if fixed:
         for r in fixed:
             lines.append(
@@ -343,13 +401,16 @@ def study_markdown(
             )
     else:
         lines.append("No gap was filled and no sample snapped.")
-    if sections:
-        lines += ["", sections.strip("\n")]
-    lines += ["", "## Warnings", ""]
-    if n_warn:
+    return lines
+
+
+def _warning_lines(warnings: dict[str, list[str]]) -> list[str]:
+    """``## Warnings``: each participant's, one a line (``None.`` when there is none)."""
+    lines = ["", "## Warnings", ""]
+    if any(warnings.values()):
         for pid, ws in warnings.items():
             for w in ws:
                 lines.append(f"- {pid}: {w}")
     else:
         lines.append("None.")
-    return "\n".join(lines) + "\n"
+    return lines
