@@ -262,8 +262,9 @@ def _check_probs(probs, n: int, what: str) -> np.ndarray:
     return p
 
 
-def _fmt(v: float) -> str:
-    """Compact number: ``0``, ``1``, ``.33``."""
+def _compact(v: float) -> str:
+    """A θ component in a top-θ label, at most two decimals without trailing zeros or the
+    leading zero: ``0``, ``1``, ``.33``."""
     s = f"{v:.2f}".rstrip("0").rstrip(".")
     return s[1:] if s.startswith("0.") else s or "0"
 
@@ -419,7 +420,7 @@ def _draw_top_thetas(ax_top: Axes, th: np.ndarray, p: np.ndarray, names: list[st
     """The ``top`` most probable θ vectors as horizontal bars, θ*'s row starred."""
     uniq, pu = _aggregate(th, p)
     order = np.argsort(-pu, kind="stable")[:top]
-    labels = ["(" + " ".join(_fmt(v) for v in uniq[i]) + ")" for i in order]
+    labels = ["(" + " ".join(_compact(v) for v in uniq[i]) + ")" for i in order]
     colors = ["#4c72b0"] * len(order)
     if true is not None:
         t_norm = true / true.sum() if true.sum() > 0 else true

@@ -26,7 +26,7 @@ from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
 from ..atomic import write_atomic
 from ..hypotheses import GROUP_BOUNDARIES, GROUP_NAMES
 from . import maps
-from .userstudy import DPI, figure_png_bytes, figure_style
+from .userstudy import DPI, figure_png_bytes, figure_style, finite_or_none
 
 #: Row height (inches) for small studies, and the plot height a large study is squeezed into
 #: before rows get thinner than :data:`MIN_ROW`.
@@ -39,17 +39,15 @@ INTERVAL_COLOR = "#7aa0d4"
 MEDIAN_COLOR = "#c2255c"
 
 
-def _num(x: Any) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return math.nan
-    return v if math.isfinite(v) else math.nan
+def _finite_or_nan(x: Any) -> float:
+    """``x`` as a finite float; NaN (not drawn) when it is not a number."""
+    v = finite_or_none(x)
+    return math.nan if v is None else v
 
 
 def study_order(rows: Sequence[dict[str, Any]]) -> list[int]:
     """Indices of ``rows`` by β̂, smallest (most expert) first; rows without a β̂ last, in order."""
-    keys = [_num(r.get("beta_hat")) for r in rows]
+    keys = [_finite_or_nan(r.get("beta_hat")) for r in rows]
     return sorted(range(len(rows)),
                   key=lambda i: (math.isnan(keys[i]), 0.0 if math.isnan(keys[i]) else keys[i], i))
 
@@ -91,9 +89,9 @@ def _figure(rows: list[dict[str, Any]], names: list[str], title: str | None) -> 
     order = study_order(rows)
     n, K = len(rows), len(names)
     ids = [str(rows[i].get("participant", "")) for i in order]
-    col = {k: np.array([_num(rows[i].get(k)) for i in order])
+    col = {k: np.array([_finite_or_nan(rows[i].get(k)) for i in order])
            for k in ("beta_hat", "beta_median", "beta_q05", "beta_q95")}
-    theta = np.array([[_num(rows[i].get(f"theta_{f}")) for f in names]
+    theta = np.array([[_finite_or_nan(rows[i].get(f"theta_{f}")) for f in names]
                       for i in order]).reshape(n, K)
     row, font, step = _row_geometry(max(n, 1))
     label_w = min(max(len(s) for s in ids) if ids else 4, 24) * font * 0.62 / 72 + 0.25

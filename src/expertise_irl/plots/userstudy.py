@@ -573,7 +573,8 @@ def _weighted_quantile(values, probs, q: float) -> float:
     return float(v[order][min(int(np.searchsorted(cdf, q - 1e-12)), len(v) - 1)])
 
 
-def _num(x) -> float | None:
+def finite_or_none(x) -> float | None:
+    """``x`` as a finite float; None when it is not a number (None, text, NaN, ±inf)."""
     try:
         v = float(x)
     except (TypeError, ValueError):
@@ -585,9 +586,9 @@ def _beta_summary(doc: dict[str, Any]) -> dict[str, float | None]:
     """Mean (β̂), median, 5% and 95% quantiles of β: from ``beta_summary``, else computed from the
     marginal or the draws (None where neither says)."""
     given = doc.get("beta_summary") if isinstance(doc.get("beta_summary"), dict) else {}
-    out = {k: _num(given.get(k)) for k in ("mean", "median", "q05", "q95")}
+    out = {k: finite_or_none(given.get(k)) for k in ("mean", "median", "q05", "q95")}
     if out["mean"] is None:
-        out["mean"] = _num(doc.get("beta_hat"))
+        out["mean"] = finite_or_none(doc.get("beta_hat"))
     marg = (doc.get("marginals") or {}).get("beta") if isinstance(doc.get("marginals"), dict) else None
     draws = (doc.get("samples") or {}).get("beta") if isinstance(doc.get("samples"), dict) else None
     for key, q in (("median", 0.5), ("q05", 0.05), ("q95", 0.95)):

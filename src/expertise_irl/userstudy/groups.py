@@ -187,7 +187,8 @@ def group_tests(rows: Sequence[Mapping[str, Any]], column: str,
     return out
 
 
-def _fmt(x: float | None) -> str:
+def _sig_or_dash(x: float | None) -> str:
+    """``x`` to 3 significant figures; a dash for None (no usable β̂ in the group)."""
     return "–" if x is None else f"{x:.3g}"
 
 
@@ -219,9 +220,10 @@ def group_markdown(rows: Sequence[Mapping[str, Any]], column: str,
              "|---|---|---|---|---|"]
     for s in summ:
         n = f"{s['n']}" + (f" (+{s['n_missing']} without β̂)" if s["n_missing"] else "")
-        iqr = "–" if s["beta_hat_q25"] is None else f"{_fmt(s['beta_hat_q25'])}–{_fmt(s['beta_hat_q75'])}"
-        lines.append(f"| {s['group']} | {n} | {_fmt(s['beta_hat_median'])} | {iqr} | "
-                     f"{_fmt(s['beta_geomean_geomean'])} |")
+        iqr = ("–" if s["beta_hat_q25"] is None
+               else f"{_sig_or_dash(s['beta_hat_q25'])}–{_sig_or_dash(s['beta_hat_q75'])}")
+        lines.append(f"| {s['group']} | {n} | {_sig_or_dash(s['beta_hat_median'])} | {iqr} | "
+                     f"{_sig_or_dash(s['beta_geomean_geomean'])} |")
     lines.append("")
     if not tests:
         lines.append(f"Only one group of {column}: nothing to compare.")

@@ -154,9 +154,9 @@ def run_population(manifest, ells, estimates, group_by: str | None = None, *, ch
             "beta_q05_pooled": float(beta_quantile(betas, pb, 0.05)),
             "beta_q95_pooled": float(beta_quantile(betas, pb, 0.95)),
             **{f"theta_{f}_pooled": float(v) for f, v in zip(names, pt @ hyp.thetas, strict=True)},
-            "heldout_population": _num(row["population"]),
-            "heldout_independent": _num(row["independent"]),
-            "heldout_pooled": _num(row["pooled"]),
+            "heldout_population": _nan_if_none(row["population"]),
+            "heldout_independent": _nan_if_none(row["independent"]),
+            "heldout_pooled": _nan_if_none(row["pooled"]),
         }
         for kind, p in (("independent", ib), ("pooled", pb)):
             widths[kind].append(math.log(beta_quantile(betas, p, 0.95) / beta_quantile(betas, p, 0.05)))
@@ -174,7 +174,8 @@ def run_population(manifest, ells, estimates, group_by: str | None = None, *, ch
             "independent": independent}
 
 
-def _num(x) -> float:
+def _nan_if_none(x) -> float:
+    """``x`` as a float, NaN for None (a held-out score that could not be computed)."""
     return math.nan if x is None else float(x)
 
 
@@ -247,7 +248,8 @@ def population_document(data, fit, post, draws, held, splits, widths, moved, nam
     }
 
 
-def _fmt(s: dict[str, float], digits: int = 3) -> str:
+def _mean_interval(s: dict[str, float], digits: int = 3) -> str:
+    """A summary ``{"mean", "q05", "q95"}`` as ``mean [q05, q95]``, ``digits`` significant."""
     return f"{s['mean']:.{digits}g} [{s['q05']:.{digits}g}, {s['q95']:.{digits}g}]"
 
 
@@ -262,10 +264,11 @@ def population_markdown(doc: dict[str, Any], feature_names: Sequence[str]) -> st
     lines += ["| group | n | population median β, exp μ [90%] | spread σ of log β [90%] |",
               "|---|---|---|---|"]
     for g, b in doc["population_beta"].items():
-        lines.append(f"| {g} | {b['n']} | {_fmt(b['median_beta'])} | {_fmt(b['sigma_log_beta'])} |")
+        lines.append(f"| {g} | {b['n']} | {_mean_interval(b['median_beta'])} | "
+                     f"{_mean_interval(b['sigma_log_beta'])} |")
     lines += ["", "Population mean of θ [90%]: " + ", ".join(
-        f"{f} {_fmt(doc['theta_population_mean'][f], 2)}" for f in feature_names)
-        + f"; concentration α {_fmt(doc['hyperparameters']['alpha'])}.", ""]
+        f"{f} {_mean_interval(doc['theta_population_mean'][f], 2)}" for f in feature_names)
+        + f"; concentration α {_mean_interval(doc['hyperparameters']['alpha'])}.", ""]
     sh = doc["shrinkage"]
     w = sh["log_beta_interval_width_median"]
     lines += [f"**By how much:** the median participant's 90% interval of β spans a factor "
@@ -286,8 +289,8 @@ def population_markdown(doc: dict[str, Any], feature_names: Sequence[str]) -> st
                   "shared.", "", "| A | B | P(μ_A < μ_B) | μ_A − μ_B [90%] | β_A/β_B (median) |",
                   "|---|---|---|---|---|"]
         for c in doc["comparisons"]:
-            lines.append(f"| {c['a']} | {c['b']} | {c['p_mu_a_lt_mu_b']:.3f} | {_fmt(c['mu_diff'])} | "
-                         f"{c['beta_ratio_median']:.3g} |")
+            lines.append(f"| {c['a']} | {c['b']} | {c['p_mu_a_lt_mu_b']:.3f} | "
+                         f"{_mean_interval(c['mu_diff'])} | {c['beta_ratio_median']:.3g} |")
         lines.append("")
     if doc["diagnostics"]["warnings"]:
         lines += ["Sampler warnings: " + "; ".join(doc["diagnostics"]["warnings"]) + ".", ""]

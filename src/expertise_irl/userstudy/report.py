@@ -64,7 +64,8 @@ def posterior_modes(
     return modes[:top]
 
 
-def _fmt(v: Any) -> str:
+def _csv_cell(v: Any) -> str:
+    """A CSV field: a float by ``repr`` (every digit; NaN empty), anything else by ``str``."""
     if isinstance(v, float):
         return "" if math.isnan(v) else repr(v)
     return str(v)
@@ -75,7 +76,7 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]], columns: Sequence[str]
         w = csv.writer(fh)
         w.writerow(columns)
         for r in rows:
-            w.writerow([_fmt(r.get(c, math.nan)) for c in columns])
+            w.writerow([_csv_cell(r.get(c, math.nan)) for c in columns])
 
 
 #: The columns that close a row of ``study.csv`` and of ``tasks.csv``: groups, Table V-VI counts, ingestion.
@@ -118,7 +119,8 @@ def task_columns(feature_names: Sequence[str], extra: Sequence[str] = ()) -> lis
             *(f"theta_{f}" for f in feature_names), *_SUMMARY_COLUMNS, *_world_columns(feature_names)]
 
 
-def _num(x: float, digits: int = 3) -> str:
+def _sig_or_blank(x: float, digits: int = 3) -> str:
+    """``x`` to ``digits`` significant figures for a Markdown table; empty for None or NaN."""
     return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}g}"
 
 
@@ -177,8 +179,8 @@ def changing_markdown(rows: Sequence[dict[str, Any]]) -> str:
               "| participant | log BF | P(changing) | P(β falls) | E[log β_last/β_first] |",
               "|---|---|---|---|---|"]
     for r in usable:
-        lines.append(f"| {r['participant']} | {_num(r['changing_log_bf'], 3)} | "
-                     f"{_num(r['p_changing'])} | {_num(r['trend_p_falls'], 2)} | "
+        lines.append(f"| {r['participant']} | {_sig_or_blank(r['changing_log_bf'], 3)} | "
+                     f"{_sig_or_blank(r['p_changing'])} | {_sig_or_blank(r['trend_p_falls'], 2)} | "
                      f"{r['trend_log_ratio']:+.2f} |")
     return "\n".join(lines) + "\n\n"
 
@@ -285,13 +287,13 @@ def _estimate_lines(rows: Sequence[dict[str, Any]], feature_names: Sequence[str]
     for r in rows:
         theta = (", ".join(f"{f} {r[f'theta_{f}']:.2f}" for f in feature_names if _has(r, f"theta_{f}"))
                  or "per task")
-        groups = " / ".join(_num(r[c], 2) for c in GROUP_COLUMNS) if _has(r, "p_high") else ""
-        band = (f"[{_num(r['beta_q05'])}, {_num(r['beta_q95'])}]"
+        groups = " / ".join(_sig_or_blank(r[c], 2) for c in GROUP_COLUMNS) if _has(r, "p_high") else ""
+        band = (f"[{_sig_or_blank(r['beta_q05'])}, {_sig_or_blank(r['beta_q95'])}]"
                 if _has(r, "beta_q05") else "")
         held = (f"{r['heldout_log_likelihood_per_action']:.3f} ({r['heldout_split']})"
                 if _has(r, "heldout_log_likelihood_per_action") else "n/a")
-        lines.append(f"| {r['participant']} | {_num(r['beta_hat'])} | "
-                     f"{_num(r['beta_median'])} | {_num(r['beta_geomean'])} | {band} | "
+        lines.append(f"| {r['participant']} | {_sig_or_blank(r['beta_hat'])} | "
+                     f"{_sig_or_blank(r['beta_median'])} | {_sig_or_blank(r['beta_geomean'])} | {band} | "
                      f"{theta} | {groups} | {held} |")
     return lines
 
@@ -311,8 +313,8 @@ def _path_lines(rows: Sequence[dict[str, Any]], feature_names: Sequence[str]) ->
     ]
     for r in rows:
         lines.append(f"| {r['participant']} | {r['path_length']} | {r['goal_reached']}/{r['episodes']} | "
-                     f"{_num(r['steps_to_goal'])} | {_num(r['cost_theta_hat'])} | "
-                     + " | ".join(_num(r.get(f"feature_{f}", math.nan), 6) for f in feature_names)
+                     f"{_sig_or_blank(r['steps_to_goal'])} | {_sig_or_blank(r['cost_theta_hat'])} | "
+                     + " | ".join(_sig_or_blank(r.get(f"feature_{f}", math.nan), 6) for f in feature_names)
                      + " |")
     return lines
 
