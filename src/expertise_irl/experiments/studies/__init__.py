@@ -19,6 +19,8 @@ from importlib.metadata import entry_points
 
 from ...errors import InputError
 
+__all__ = ["GROUP", "get_study", "studies"]
+
 #: The entry-point group that registers studies.
 GROUP = "expertise_irl.studies"
 
@@ -44,11 +46,31 @@ def _registered() -> tuple:
 
 
 def studies() -> dict:
-    """Study name -> :class:`~expertise_irl.experiments.spec.Study`, in the order registered."""
+    """Every registered study, by name, in the order registered.
+
+    Returns:
+        Study name -> :class:`~expertise_irl.experiments.spec.Study`.
+
+    Raises:
+        InputError: an entry point cannot be loaded, none is registered, or two register the
+            same name.
+    """
     return {s.name: s for s in _registered()}
 
 
 def get_study(name: str):
+    """The registered study called ``name``.
+
+    Args:
+        name: the study's name (``expertise-irl experiment list``).
+
+    Returns:
+        Its :class:`~expertise_irl.experiments.spec.Study`.
+
+    Raises:
+        InputError: no study of that name is registered (the message lists those that are), or
+            the registry cannot be read (see :func:`studies`).
+    """
     known = studies()
     if name not in known:
         raise InputError(f"unknown study {name!r} (studies: {', '.join(sorted(known))})")
