@@ -36,12 +36,31 @@ from .planning.soft_vi import solve
 
 
 def expertise_distance(beta_true: float, beta_hat: float) -> float:
-    """``|β* − β̂|``; smaller is better."""
+    """``|β* − β̂|``; smaller is better.
+
+    Args:
+        beta_true: the true expertise β*.
+        beta_hat: the estimate β̂.
+
+    Returns:
+        The absolute difference.
+    """
     return float(abs(float(beta_true) - float(beta_hat)))
 
 
 def cosine_similarity(theta_true, theta_hat) -> float:
-    """``θ*·θ̂ / (‖θ*‖ ‖θ̂‖)`` in [−1, 1]; 1 means the same direction."""
+    """``θ*·θ̂ / (‖θ*‖ ‖θ̂‖)`` in [−1, 1]; 1 means the same direction.
+
+    Args:
+        theta_true: the true reward weights θ* ``[K]``.
+        theta_hat: the estimate θ̂ ``[K]``.
+
+    Returns:
+        The cosine of the angle between them.
+
+    Raises:
+        InputError: the two are not 1-D of equal length, or one of them is zero.
+    """
     a = np.asarray(theta_true, dtype=np.float64)
     b = np.asarray(theta_hat, dtype=np.float64)
     if a.shape != b.shape or a.ndim != 1:
@@ -53,7 +72,19 @@ def cosine_similarity(theta_true, theta_hat) -> float:
 
 
 def regret_from_values(v_true: np.ndarray, v_hat: np.ndarray, terminal: np.ndarray) -> float:
-    """Eq. 17 from two value vectors ``[S]`` (see the module docstring)."""
+    """Eq. 17 from two value vectors ``[S]`` (see the module docstring).
+
+    Args:
+        v_true: the soft values of θ* at β*.
+        v_hat: the soft values of θ̂ at β*.
+        terminal: ``[S]`` which states are terminal (left out of the mean).
+
+    Returns:
+        The mean absolute difference over non-terminal states, divided by ``max |v_true|``.
+
+    Raises:
+        InputError: every state is terminal, or ``v_true`` is zero everywhere.
+    """
     keep = ~np.asarray(terminal, dtype=bool)
     vt, vh = np.asarray(v_true)[keep], np.asarray(v_hat)[keep]
     if vt.size == 0:
@@ -65,7 +96,21 @@ def regret_from_values(v_true: np.ndarray, v_hat: np.ndarray, terminal: np.ndarr
 
 
 def policy_regret(mdp: TabularMDP, theta_true, beta_true: float, theta_hat, **solve_kwargs) -> float:
-    """Eq. 17: how far the soft values of θ̂ (at the true β*) are from those of θ*; 0 is best."""
+    """Eq. 17: how far the soft values of θ̂ (at the true β*) are from those of θ*; 0 is best.
+
+    Args:
+        mdp: the task.
+        theta_true: the true reward weights θ* ``[K]``.
+        beta_true: the true expertise β*, at which both values are computed.
+        theta_hat: the estimate θ̂ ``[K]``.
+        **solve_kwargs: passed to :func:`~expertise_irl.planning.soft_vi.solve` (``tol``, ...).
+
+    Returns:
+        The regret of :func:`regret_from_values`.
+
+    Raises:
+        InputError: as :func:`regret_from_values`.
+    """
     sol = solve(mdp, np.stack([np.asarray(theta_true, float), np.asarray(theta_hat, float)]),
                 np.array([beta_true, beta_true], dtype=float), **solve_kwargs)
     return regret_from_values(sol.value[0], sol.value[1], mdp.terminal)
@@ -86,8 +131,19 @@ def _optimal_values(mdp: TabularMDP, reward: np.ndarray, tol: float) -> np.ndarr
 
 
 def greedy_policy(mdp: TabularMDP, theta, *, tol: float = 1e-10) -> np.ndarray:
-    """``[S, A]`` the optimal policy of reward θ (β → 0): each state's optimal actions (within
-    1e-9 of the best Q, relative to the values' scale) share its probability evenly; terminal rows 0."""
+    """``[S, A]`` the optimal policy of reward θ (β → 0).
+
+    Each state's optimal actions (within 1e-9 of the best Q, relative to the values' scale) share
+    its probability evenly; terminal rows are 0.
+
+    Args:
+        mdp: the task.
+        theta: the reward weights ``[K]``.
+        tol: the tolerance of value iteration on the optimal (hard) values.
+
+    Returns:
+        The policy's action probabilities, ``[S, A]``.
+    """
     reward = mdp.reward(np.asarray(theta, dtype=np.float64))
     v = _optimal_values(mdp, reward, tol)
     avail, nxt = mdp.available, np.where(mdp.available, mdp.next_state, 0)
@@ -100,14 +156,31 @@ def greedy_policy(mdp: TabularMDP, theta, *, tol: float = 1e-10) -> np.ndarray:
 
 
 def uniform_policy(mdp: TabularMDP) -> np.ndarray:
-    """``[S, A]`` every available action equally likely; terminal rows 0."""
+    """``[S, A]`` every available action equally likely; terminal rows 0.
+
+    Args:
+        mdp: the task.
+
+    Returns:
+        The policy's action probabilities, ``[S, A]``.
+    """
     avail = mdp.available
     return avail / np.maximum(avail.sum(axis=1, keepdims=True), 1)
 
 
 def policy_values(mdp: TabularMDP, theta, policy: np.ndarray) -> np.ndarray:
-    """``[S]`` the exact expected discounted return of ``policy [S, A]`` under reward θ (0 at
-    terminal states): ``(I − γ P_π) V = r_π`` solved directly (sparse LU)."""
+    """``[S]`` the exact expected discounted return of ``policy [S, A]`` under reward θ.
+
+    The values are 0 at terminal states; ``(I − γ P_π) V = r_π`` is solved directly (sparse LU).
+
+    Args:
+        mdp: the task.
+        theta: the reward weights ``[K]`` the return is counted in.
+        policy: ``[S, A]`` action probabilities (those of unavailable actions are ignored).
+
+    Returns:
+        The values ``[S]``.
+    """
     reward = mdp.reward(np.asarray(theta, dtype=np.float64))
     avail = mdp.available
     S = mdp.n_states
@@ -120,8 +193,19 @@ def policy_values(mdp: TabularMDP, theta, policy: np.ndarray) -> np.ndarray:
 
 
 def return_regret_table(mdp: TabularMDP, theta_true, thetas_hat) -> np.ndarray:
-    """:func:`return_regret` of each row of ``thetas_hat [N, K]`` against one θ*: the optimal and
-    the uniform policies' returns are computed once. NaN where it is undefined (see there)."""
+    """:func:`return_regret` of each row of ``thetas_hat [N, K]`` against one θ*.
+
+    The optimal and the uniform policies' returns are computed once.
+
+    Args:
+        mdp: the task.
+        theta_true: the true reward weights θ* ``[K]``.
+        thetas_hat: the estimates ``[N, K]``.
+
+    Returns:
+        ``[N]`` the return regret of each estimate; NaN where it is undefined (every policy earns
+        the same under θ*).
+    """
     theta_true = np.asarray(theta_true, dtype=np.float64)
     keep = ~mdp.terminal
     best = policy_values(mdp, theta_true, greedy_policy(mdp, theta_true))[keep]
@@ -137,6 +221,14 @@ def return_regret_table(mdp: TabularMDP, theta_true, thetas_hat) -> np.ndarray:
 
 def return_regret(mdp: TabularMDP, theta_true, theta_hat) -> float:
     """What acting on θ̂ costs under θ* (see the module docstring); 0 is best, 1 is acting at random.
+
+    Args:
+        mdp: the task.
+        theta_true: the true reward weights θ* ``[K]``.
+        theta_hat: the estimate θ̂ ``[K]``.
+
+    Returns:
+        The shortfall of θ̂'s optimal policy's return under θ*, as a share of the uniform policy's.
 
     Raises:
         InputError: θ̂ or θ* of the wrong length, or every policy earns the same under θ* (the
