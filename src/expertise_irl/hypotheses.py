@@ -68,6 +68,18 @@ def theta_grid(values: Sequence[float], n_features: int) -> np.ndarray:
 
     ``theta_grid((0, .3, .5, .7, 1), 5)`` has 3,031 rows (the paper's 3,124 non-zero
     products less duplicate directions); ``theta_grid((0, .5, 1), 3)`` has 19.
+
+    Args:
+        values: the values each component takes (finite, non-negative, one of them positive).
+        n_features: the number of components K.
+
+    Returns:
+        ``[N, K]`` every product of the values, scaled to unit l1 norm, duplicate directions
+        dropped, in order of first appearance.
+
+    Raises:
+        InputError: ``values`` is empty, has a negative or non-finite number or no positive one,
+            ``n_features`` is below 1, or the product would have over 5,000,000 rows.
     """
     vals = np.asarray(values, dtype=np.float64)
     if vals.ndim != 1 or vals.size == 0:
@@ -125,6 +137,12 @@ def expertise_group(beta: float) -> str:
 
     Boundaries are the geometric midpoints between the paper's groups:
     β < 0.212 is high, 0.212 ≤ β < 2.236 is medium, β ≥ 2.236 is low.
+
+    Args:
+        beta: the temperature β (lower is more expert).
+
+    Returns:
+        The group's name.
     """
     lo, hi = GROUP_BOUNDARIES
     if beta < lo:
@@ -138,10 +156,15 @@ def expertise_group(beta: float) -> str:
 class HypothesisSet:
     """The product Ψ = Θ × B, flattened θ-major.
 
+    Hypothesis ``h`` is ``(thetas[h // n_beta], betas[h % n_beta])``. The θs are scaled to unit
+    l1 norm and the βs sorted and de-duplicated when the set is built.
+
     Attributes:
         thetas: ``[n_theta, K]`` unit-l1 preference vectors.
         betas: ``[n_beta]`` temperatures.
-    Hypothesis ``h`` is ``(thetas[h // n_beta], betas[h % n_beta])``.
+
+    Raises:
+        InputError: a θ is negative, non-finite or all zero, or a β is not finite and > 0.
     """
 
     thetas: np.ndarray
@@ -175,7 +198,15 @@ class HypothesisSet:
         return np.tile(self.betas, self.n_theta)
 
     def index(self, theta, beta: float) -> int | None:
-        """Flat index of ``(theta, beta)`` if it is in the set (θ compared after normalising)."""
+        """Flat index of ``(theta, beta)`` if it is in the set (θ compared after normalising).
+
+        Args:
+            theta: the preference vector ``[K]``, at any scale.
+            beta: the temperature.
+
+        Returns:
+            The hypothesis' index, or None when the pair is not in the set.
+        """
         t = normalize_theta(theta)
         ti = np.flatnonzero(np.all(np.isclose(self.thetas, t, atol=1e-9), axis=1))
         bi = np.flatnonzero(np.isclose(self.betas, beta, rtol=1e-9, atol=0))
