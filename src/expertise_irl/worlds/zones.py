@@ -71,6 +71,10 @@ class ZoneMap(GridMap):
         name: file name or label, used in messages and figures.
         goal_reward_mode: ``"scaled"`` (the bonus is part of ``length``, weighted by θ_length)
             or ``"fixed"`` (a reward outside θ·φ); see :data:`~.grid.GOAL_REWARD_MODES`.
+
+    Raises:
+        InputError: a cell is not one legend character, the grid is not a non-empty rectangle, or
+            a setting is out of range.
     """
 
     grid: np.ndarray
@@ -96,7 +100,12 @@ class ZoneMap(GridMap):
         return self.cell_index()
 
     def to_mdp(self) -> TabularMDP:
-        """Compile to a :class:`TabularMDP` with the five features of the module docstring."""
+        """Compile to a :class:`TabularMDP` with the five features of the module docstring.
+
+        Returns:
+            The MDP: one state per passable cell, goals terminal, the ``S`` cells its start states
+            (every non-terminal state when there is none).
+        """
         g = self.grid
         cells = self.cells
         xs, ys = cells[:, 0], cells[:, 1]
@@ -126,7 +135,22 @@ class ZoneMap(GridMap):
 
 def parse_map(text: str, *, name: str = "<map>", goal_bonus: float = DEFAULT_GOAL_BONUS,
               gamma: float = DEFAULT_GAMMA, goal_reward_mode: str = DEFAULT_GOAL_REWARD_MODE) -> ZoneMap:
-    """Parse a text map. Blank lines at the start and end are ignored; rows must be equally long."""
+    """Parse a text map. Blank lines at the start and end are ignored; rows must be equally long.
+
+    Args:
+        text: the map, one row of legend characters per line.
+        name: a label for messages and figures (a file name, say).
+        goal_bonus: what entering a goal pays.
+        gamma: discount factor of the compiled MDP.
+        goal_reward_mode: ``"scaled"`` or ``"fixed"`` (see :class:`ZoneMap`).
+
+    Returns:
+        The map.
+
+    Raises:
+        InputError: rows of unequal length, a character outside the legend, or a setting out of
+            range; the message names ``name`` and the place.
+    """
     return ZoneMap(read_grid(text, name, LEGEND), goal_bonus=goal_bonus, gamma=gamma, name=name,
                    goal_reward_mode=goal_reward_mode)
 
@@ -151,7 +175,18 @@ def read_settings(path: Path) -> dict:
 
 
 def load_map(path: str | Path) -> ZoneMap:
-    """Read a text map and, if present, the settings TOML beside it (``name.toml``)."""
+    """Read a text map and, if present, the settings TOML beside it (``name.toml``).
+
+    Args:
+        path: the map's text file.
+
+    Returns:
+        The map, named by its path.
+
+    Raises:
+        InputError: the file is missing or not a UTF-8 text map, or its settings TOML has an
+            unknown key or a value of the wrong type.
+    """
     path = map_file(path, "map")
     hint = "; pass an MDP archive with --mdp" if path.suffix == ".npz" else ""
     text = read_text(path, f"not a text map (UTF-8){hint}")
@@ -167,7 +202,17 @@ def bundled_maps() -> list[str]:
 
 
 def load_bundled(name: str) -> ZoneMap:
-    """Load a bundled example map by name (see :func:`bundled_maps`)."""
+    """Load a bundled example map by name (see :func:`bundled_maps`).
+
+    Args:
+        name: the map's name, e.g. ``"crossroads"``.
+
+    Returns:
+        The map, named ``bundled:<name>``, with its bundled settings.
+
+    Raises:
+        InputError: no bundled map has that name (the message lists those that do).
+    """
     if name not in bundled_maps():
         raise InputError(f"no bundled map {name!r} (available: {', '.join(bundled_maps())})")
     base = resources.files("expertise_irl") / "maps"
@@ -211,6 +256,35 @@ def reachable_from_goals(grid: np.ndarray) -> np.ndarray:
     return seen
 
 
+def _zones(rng: np.random.Generator, w: int, h: int, max_zones: int) -> np.ndarray:
+    """A ``[h, w]`` free grid with up to ``max_zones`` roads, then as many rectangles of each of
+    slow, traffic, avoid and obstacle, painted in that order (:func:`generate_map`'s draws)."""
+    g = np.full((h, w), FREE, dtype="<U1")
+
+    def rect(max_frac: float) -> tuple[int, int, int, int]:
+        rw = int(rng.integers(1, max(2, int(w * max_frac)) + 1))
+        rh = int(rng.integers(1, max(2, int(h * max_frac)) + 1))
+        x0 = int(rng.integers(0, w - min(rw, w) + 1))
+        y0 = int(rng.integers(0, h - min(rh, h) + 1))
+        return x0, y0, min(rw, w), min(rh, h)
+
+    for _z in range(int(rng.integers(0, max_zones + 1))):  # roads
+        thick = int(rng.integers(1, 3))
+        if rng.random() < 0.5:  # horizontal
+            length = int(rng.integers(max(2, w // 3), w + 1))
+            x0, y0 = int(rng.integers(0, w - length + 1)), int(rng.integers(0, h - thick + 1))
+            g[y0:y0 + thick, x0:x0 + length] = ">" if rng.random() < 0.5 else "<"
+        else:
+            length = int(rng.integers(max(2, h // 3), h + 1))
+            x0, y0 = int(rng.integers(0, w - thick + 1)), int(rng.integers(0, h - length + 1))
+            g[y0:y0 + length, x0:x0 + thick] = "v" if rng.random() < 0.5 else "^"
+    for ch, frac in ((SLOW, 0.3), (TRAFFIC, 0.3), (AVOID, 0.25), (OBSTACLE, 0.2)):
+        for _z in range(int(rng.integers(0, max_zones + 1))):
+            x0, y0, rw, rh = rect(frac)
+            g[y0:y0 + rh, x0:x0 + rw] = ch
+    return g
+
+
 def generate_map(
     rng: np.random.Generator,
     *,
@@ -233,6 +307,25 @@ def generate_map(
     non-obstacle cell; any pocket cut off from it by obstacles is filled with obstacles,
     so the compiled MDP always passes validation. Draws are retried (at most 100 times)
     until at least half of the grid stays passable.
+
+    Args:
+        rng: the random generator every draw comes from.
+        min_size: the smallest side drawn.
+        max_size: the largest side drawn.
+        width: the width, instead of a draw.
+        height: the height, instead of a draw.
+        max_zones: the most rectangles (or roads) of each zone type.
+        goal_bonus: what entering the goal pays.
+        gamma: discount factor of the compiled MDP.
+        name: a label for messages and figures.
+        goal_reward_mode: ``"scaled"`` or ``"fixed"`` (see :class:`ZoneMap`).
+
+    Returns:
+        The map.
+
+    Raises:
+        InputError: ``min_size`` below 3 or above ``max_size``, or ``width``/``height`` below 3.
+        RuntimeError: 100 draws left less than half of the grid passable.
     """
     if min_size < 3 or max_size < min_size:
         raise InputError(f"need 3 <= min_size <= max_size, got {min_size}, {max_size}")
@@ -242,29 +335,7 @@ def generate_map(
     for _ in range(100):
         w = width if width is not None else int(rng.integers(min_size, max_size + 1))
         h = height if height is not None else int(rng.integers(min_size, max_size + 1))
-        g = np.full((h, w), FREE, dtype="<U1")
-
-        def rect(max_frac: float, w: int = w, h: int = h) -> tuple[int, int, int, int]:
-            rw = int(rng.integers(1, max(2, int(w * max_frac)) + 1))
-            rh = int(rng.integers(1, max(2, int(h * max_frac)) + 1))
-            x0 = int(rng.integers(0, w - min(rw, w) + 1))
-            y0 = int(rng.integers(0, h - min(rh, h) + 1))
-            return x0, y0, min(rw, w), min(rh, h)
-
-        for _z in range(int(rng.integers(0, max_zones + 1))):  # roads
-            thick = int(rng.integers(1, 3))
-            if rng.random() < 0.5:  # horizontal
-                length = int(rng.integers(max(2, w // 3), w + 1))
-                x0, y0 = int(rng.integers(0, w - length + 1)), int(rng.integers(0, h - thick + 1))
-                g[y0:y0 + thick, x0:x0 + length] = ">" if rng.random() < 0.5 else "<"
-            else:
-                length = int(rng.integers(max(2, h // 3), h + 1))
-                x0, y0 = int(rng.integers(0, w - thick + 1)), int(rng.integers(0, h - length + 1))
-                g[y0:y0 + length, x0:x0 + thick] = "v" if rng.random() < 0.5 else "^"
-        for ch, frac in ((SLOW, 0.3), (TRAFFIC, 0.3), (AVOID, 0.25), (OBSTACLE, 0.2)):
-            for _z in range(int(rng.integers(0, max_zones + 1))):
-                x0, y0, rw, rh = rect(frac)
-                g[y0:y0 + rh, x0:x0 + rw] = ch
+        g = _zones(rng, w, h, max_zones)
         free = np.argwhere(g != OBSTACLE)
         if len(free) < 2:
             continue
