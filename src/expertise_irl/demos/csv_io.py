@@ -58,22 +58,21 @@ def _require_grid(mdp: TabularMDP, source) -> np.ndarray:
 def write_demos_csv(path: str | Path, trajs: Trajectories, mdp: TabularMDP, *, fmt: str = "auto") -> None:
     """Write demonstrations as CSV (formats in the README); :func:`read_demos_csv` reads them back.
 
-    Parameters
-    ----------
-    path : str or Path
-        File to write (overwritten).
-    trajs : Trajectories
-        ``[N]`` pairs, checked with :func:`validate` first.
-    mdp : TabularMDP
-        The task they belong to.
-    fmt : {"auto", "state", "grid"}
-        ``"state"``: header ``episode,step,state,action``, one row per pair.
-        ``"grid"``: header ``episode,step,x,y``, one row per visited cell including the
-        cell the last action leads to (needs ``mdp.state_xy``, 4 actions, one state per
-        cell); in a heading world (``mdp.state_heading``) one state per cell and heading,
-        and a ``heading`` column (``h``/``v``) is added. ``"auto"``: grid when the MDP is
-        such a grid and no move stays in its cell (a bump into a wall: x,y rows cannot say which
-        way it went), else state.
+    Args:
+        path: file to write (overwritten).
+        trajs: ``[N]`` pairs, checked with :func:`validate` first.
+        mdp: the task they belong to.
+        fmt: ``"auto"``, ``"state"`` or ``"grid"``. ``"state"``: header
+            ``episode,step,state,action``, one row per pair. ``"grid"``: header
+            ``episode,step,x,y``, one row per visited cell including the cell the last action
+            leads to (needs ``mdp.state_xy``, 4 actions, one state per cell); in a heading world
+            (``mdp.state_heading``) one state per cell and heading, and a ``heading`` column
+            (``h``/``v``) is added. ``"auto"``: grid when the MDP is such a grid and no move stays
+            in its cell (a bump into a wall: x,y rows cannot say which way it went), else state.
+
+    Raises:
+        InputError: a pair is not valid in ``mdp``, there are no pairs, ``fmt`` is unknown, or
+            ``"grid"`` was asked of an MDP or demonstrations that cannot be written as cells.
     """
     validate(trajs, mdp)
     if len(trajs) == 0:
@@ -238,22 +237,15 @@ def read_demos_csv(path: str | Path, mdp: TabularMDP) -> Trajectories:
     2, ...; episodes keep their labels and file order. Blank lines, whitespace around fields, a UTF-8 BOM
     and CRLF line ends are accepted.
 
-    Parameters
-    ----------
-    path : str or Path
-        The CSV file.
-    mdp : TabularMDP
-        The task; every pair is checked with the rules of :func:`validate`.
+    Args:
+        path: the CSV file.
+        mdp: the task; every pair is checked with the rules of :func:`validate`.
 
-    Returns
-    -------
-    Trajectories
+    Returns:
         ``[N]`` pairs.
 
-    Raises
-    ------
-    InputError
-        One line ``"<path>:<line>: [episode E step T: ]<reason>"`` (line 1 = header).
+    Raises:
+        InputError: one line ``"<path>:<line>: [episode E step T: ]<reason>"`` (line 1 = header).
     """
     fmt, v, lines, given_heading = _read_rows(path, heading=mdp.state_heading is not None)
     ep, step = v[:, 0], v[:, 1]

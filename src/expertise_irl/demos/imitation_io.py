@@ -101,9 +101,20 @@ def to_imitation(trajs: Trajectories, mdp: TabularMDP, *, observations: str = "o
                  trajectory_cls=None) -> list[Any]:
     """One ``imitation.data.types.Trajectory`` per episode of ``trajs`` (the mapping: module docstring).
 
-    ``trajs`` is checked against ``mdp`` first (:func:`~.trajectories.validate`). ``trajectory_cls``
-    replaces imitation's class (called with the keywords ``obs``, ``acts``, ``infos``,
-    ``terminal``); without it imitation must be importable, else :class:`InputError`.
+    Args:
+        trajs: the demonstrations, checked against ``mdp`` first (:func:`~.trajectories.validate`).
+        mdp: the task they belong to.
+        observations: ``"one-hot"`` (float32 rows of length S) or ``"index"`` (int64 state
+            indices).
+        trajectory_cls: replaces imitation's class (called with the keywords ``obs``, ``acts``,
+            ``infos``, ``terminal``); without it imitation must be importable.
+
+    Returns:
+        The trajectories, episodes in their order in ``trajs``.
+
+    Raises:
+        InputError: an unknown ``observations``, demonstrations not valid in ``mdp``, or imitation
+            not installed and no ``trajectory_cls``.
     """
     if observations not in OBSERVATIONS:
         raise InputError(f"observations must be one of {', '.join(OBSERVATIONS)}, got {observations!r}")
@@ -165,8 +176,23 @@ def from_imitation(trajectories: Iterable[Any], mdp: TabularMDP, *, episode_ids:
                    source: str = "<imitation>") -> Trajectories:
     """:class:`Trajectories` from imitation's trajectories (or any objects with their fields).
 
-    The inverse of :func:`to_imitation` for either kind of observation. Episodes are labelled
-    ``episode_ids`` (default 0, 1, …). :class:`InputError` names the trajectory at fault.
+    The inverse of :func:`to_imitation` for either kind of observation.
+
+    Args:
+        trajectories: objects with ``obs``, ``acts`` and ``terminal`` (``infos`` and ``rews`` are
+            ignored).
+        mdp: the task they belong to.
+        episode_ids: the episodes' labels (default 0, 1, …), one per trajectory and distinct.
+        source: a label for messages (a file name, say).
+
+    Returns:
+        The pairs of every trajectory, in list order.
+
+    Raises:
+        InputError: the ids do not match the trajectories, or a trajectory has a missing field,
+            observations that are not one-hot rows or state indices, a move not possible in
+            ``mdp``, or a final observation or ``terminal`` that disagrees with its last move; the
+            message names the trajectory at fault.
     """
     trajectories = list(trajectories)
     if episode_ids is None:
@@ -218,6 +244,7 @@ class ArrivalChain:
     States ``x`` of the chain, in this order: one per available pair ``(s, a)``
     (``pair_index[s, a]``, −1 for none), one per start state (``start_index[s]``, −1 for states
     that are not starts), then ``sink``, ``dead`` and, with discounted transitions, ``end``.
+    Built by :func:`arrival_chain`.
 
     Attributes:
         transition_matrix: ``[X, A, X]`` float64 (one 1 per row; with discounted transitions γ on
@@ -226,8 +253,14 @@ class ArrivalChain:
             as the last feature, whose weight then is 1/β too); zero for the other states.
         fixed_reward: ``[X]`` reward outside the learned weights: :data:`DEAD_REWARD` on ``dead``.
         initial_state_dist: ``[X]`` uniform over the start states.
+        pair_index: ``[S, A]`` the chain state of each pair, −1 for unavailable ones.
+        start_index: ``[S]`` the chain state of each start state, −1 for the others.
+        sink: index of ``sink``, where moves into a goal lead.
+        dead: index of ``dead``, where unavailable actions lead.
         end: index of ``end``, −1 without discounted transitions.
-        horizon: MCE IRL's number of steps; gamma: the MDP's discount; n_theta: K.
+        horizon: MCE IRL's number of steps.
+        gamma: the MDP's discount.
+        n_theta: K, the MDP's number of features.
     """
 
     transition_matrix: np.ndarray
@@ -256,6 +289,16 @@ class ArrivalChain:
         """Each episode as chain states, T + 1 of them: its start, then ``(s_t, a_t)`` for each pair.
 
         Episodes are cut to ``horizon`` actions, the length of MCE IRL's model.
+
+        Args:
+            trajs: the demonstrations.
+            mdp: the MDP the chain was built from.
+
+        Returns:
+            One int64 array of chain states per episode, in episode order.
+
+        Raises:
+            InputError: an episode starts in a state that is not a start state of the chain.
         """
         out = []
         for states, actions in trajs.episodes():
@@ -268,8 +311,21 @@ class ArrivalChain:
         return out
 
     def trajectories(self, trajs: Trajectories, mdp: TabularMDP, *, trajectory_cls=None) -> list[Any]:
-        """:meth:`states` as imitation Trajectories (``obs``: chain state indices, what ``MCEIRL``
-        counts); ``terminal`` as in :func:`to_imitation`, False for an episode cut at ``horizon``."""
+        """:meth:`states` as imitation Trajectories (``obs``: chain state indices, what ``MCEIRL`` counts).
+
+        ``terminal`` is as in :func:`to_imitation`, False for an episode cut at ``horizon``.
+
+        Args:
+            trajs: the demonstrations, checked against ``mdp`` first.
+            mdp: the MDP the chain was built from.
+            trajectory_cls: replaces imitation's class, as in :func:`to_imitation`.
+
+        Returns:
+            One trajectory per episode.
+
+        Raises:
+            InputError: as :meth:`states`, or imitation not installed and no ``trajectory_cls``.
+        """
         validate(trajs, mdp)
         cls = _trajectory_class(trajectory_cls)
         out = []
@@ -281,8 +337,21 @@ class ArrivalChain:
         return out
 
     def occupancy(self, trajs: Trajectories, mdp: TabularMDP) -> np.ndarray:
-        """``[X]`` the demonstrations' discounted occupancy per episode, Σ_t γ^t [x_t = x] averaged
-        over episodes (``MCEIRL(discount=γ)``'s count of :meth:`trajectories`)."""
+        """``[X]`` the demonstrations' discounted occupancy per episode.
+
+        Σ_t γ^t [x_t = x] averaged over episodes (``MCEIRL(discount=γ)``'s count of
+        :meth:`trajectories`).
+
+        Args:
+            trajs: the demonstrations.
+            mdp: the MDP the chain was built from.
+
+        Returns:
+            The occupancy of every chain state.
+
+        Raises:
+            InputError: as :meth:`states`.
+        """
         om = np.zeros(self.n_states)
         paths = self.states(trajs, mdp)
         for x in paths:
@@ -290,8 +359,19 @@ class ArrivalChain:
         return om / max(len(paths), 1)
 
     def theta_beta(self, weights) -> tuple[np.ndarray, float]:
-        """``(θ̂, β̂)`` of learned weights ``w = θ/β`` over the MDP's K features: θ̂ = w/‖w‖₁ and
-        β̂ = 1/‖w‖₁ (with a ``reward_offset`` feature, its own weight is left out)."""
+        """``(θ̂, β̂)`` of learned weights ``w = θ/β`` over the MDP's K features.
+
+        θ̂ = w/‖w‖₁ and β̂ = 1/‖w‖₁ (with a ``reward_offset`` feature, its own weight is left out).
+
+        Args:
+            weights: the learned weights, ``[K]`` or ``[K + 1]``.
+
+        Returns:
+            θ̂ ``[K]`` and β̂.
+
+        Raises:
+            InputError: the weights are all zero.
+        """
         w = np.asarray(weights, dtype=np.float64)[: self.n_theta]
         norm = float(np.abs(w).sum())
         if norm == 0:
@@ -301,10 +381,22 @@ class ArrivalChain:
 
 def arrival_chain(mdp: TabularMDP, horizon: int, starts=None, *,
                   discounted_transitions: bool = False) -> ArrivalChain:
-    """The :class:`ArrivalChain` of ``mdp`` with MCE IRL's ``horizon``; episodes start uniformly
-    in ``starts`` (default ``mdp.initial_states()``; give the demonstrations' own starts when
-    matching their occupancy). ``discounted_transitions``: end each move with probability 1 − γ
-    (module docstring), for an ``MCEIRL`` with ``discount=1``."""
+    """The :class:`ArrivalChain` of ``mdp`` with MCE IRL's ``horizon``.
+
+    Args:
+        mdp: the task.
+        horizon: MCE IRL's number of steps (>= 1).
+        starts: the states episodes start in, uniformly (default ``mdp.initial_states()``; give
+            the demonstrations' own starts when matching their occupancy).
+        discounted_transitions: end each move with probability 1 − γ (module docstring), for an
+            ``MCEIRL`` with ``discount=1``.
+
+    Returns:
+        The chain.
+
+    Raises:
+        InputError: ``horizon`` below 1, or ``starts`` not non-terminal states of ``mdp``.
+    """
     if int(horizon) < 1:
         raise InputError(f"horizon must be >= 1, got {horizon}")
     starts = mdp.initial_states() if starts is None else np.unique(np.asarray(starts, dtype=np.int64))
@@ -357,8 +449,20 @@ def arrival_chain(mdp: TabularMDP, horizon: int, starts=None, *,
 
 
 def tabular_pomdp(chain: ArrivalChain):
-    """The chain as imitation's ``seals.base_envs.TabularModelPOMDP`` (observations: the chain's
-    :attr:`~ArrivalChain.observation_matrix`; its own reward matrix is zero, MCE IRL learns one)."""
+    """The chain as imitation's ``seals.base_envs.TabularModelPOMDP``.
+
+    Its observations are the chain's :attr:`~ArrivalChain.observation_matrix`; its own reward
+    matrix is zero (MCE IRL learns one).
+
+    Args:
+        chain: the chain of :func:`arrival_chain`.
+
+    Returns:
+        The environment, for ``imitation.algorithms.mce_irl.MCEIRL``.
+
+    Raises:
+        InputError: seals (imitation's environments) is not installed.
+    """
     cls = _import("seals.base_envs", "TabularModelPOMDP")
     return cls(transition_matrix=chain.transition_matrix, observation_matrix=chain.observation_matrix,
                reward_matrix=np.zeros(chain.n_states), horizon=chain.horizon,

@@ -87,42 +87,31 @@ def simulate(
     uniform number per active episode and picks the action by inverse-CDF sampling
     from the cumulative policy. The same ``rng`` state gives identical output.
 
-    Parameters
-    ----------
-    mdp : TabularMDP
-        The task.
-    theta : array ``[K]``
-        Reward weights, finite and ``>= 0``; used as given (not normalised).
-    beta : float
-        Expertise (temperature), ``> 0``.
-    n_episodes : int
-        Number of episodes N (``>= 0``).
-    rng : numpy.random.Generator or int
-        Source of all randomness (start states and actions); an int is used as a seed.
-    starts : array ``[M]`` of int, optional
-        Non-terminal states to start from, drawn uniformly per episode. Default:
-        ``mdp.initial_states()`` (the map's start cells, else every non-terminal state).
-    max_steps : int
-        An episode ends on entering a terminal state or after ``max_steps`` actions.
-        Truncating at a fixed step count does not bias the likelihood of the recorded
-        pairs: the stopping rule does not depend on the actions' probabilities under
-        any hypothesis, so it contributes the same factor to every hypothesis.
-    log_policy : array ``[S, A]``, optional
-        Use this log-policy instead of solving for ``(theta, beta)`` (e.g. one row of
-        ``planning.solve(...).log_policy``); ``theta`` and ``beta`` may then be None.
-    model : str
-        The observation model of :mod:`expertise_irl.models` (default ``"maxent"``, the
-        paper's); ignored when ``log_policy`` is given.
+    Args:
+        mdp: the task.
+        theta: ``[K]`` reward weights, finite and ``>= 0``; used as given (not normalised).
+        beta: expertise (temperature), ``> 0``.
+        n_episodes: number of episodes N (``>= 0``).
+        rng: source of all randomness (start states and actions), a
+            :class:`numpy.random.Generator`; an int is used as a seed.
+        starts: ``[M]`` non-terminal states to start from, drawn uniformly per episode.
+            Default: ``mdp.initial_states()`` (the map's start cells, else every non-terminal
+            state).
+        max_steps: an episode ends on entering a terminal state or after ``max_steps`` actions.
+            Truncating at a fixed step count does not bias the likelihood of the recorded
+            pairs: the stopping rule does not depend on the actions' probabilities under
+            any hypothesis, so it contributes the same factor to every hypothesis.
+        log_policy: ``[S, A]``, used instead of solving for ``(theta, beta)`` (e.g. one row of
+            ``planning.solve(...).log_policy``); ``theta`` and ``beta`` may then be None.
+        model: the observation model of :mod:`expertise_irl.models` (default ``"maxent"``, the
+            paper's); ignored when ``log_policy`` is given.
 
-    Returns
-    -------
-    Trajectories
+    Returns:
         ``[n]`` pairs; episodes labelled ``0..N-1``, steps ``0..T-1`` within each.
 
-    Raises
-    ------
-    InputError
-        Bad θ, β, ``starts``, ``max_steps``, ``n_episodes`` or ``log_policy``.
+    Raises:
+        InputError: bad θ, β, ``starts``, ``max_steps``, ``n_episodes`` or ``log_policy``.
+        ArgumentError: ``log_policy`` of the wrong shape.
     """
     lp = _policy(mdp, theta, beta, log_policy, model)
     st = check_start_states(mdp, starts)

@@ -15,14 +15,17 @@ from ..mdp import ACTION_NAMES, TabularMDP
 class Trajectories:
     """Observed (state, action) pairs of one or more episodes, flat and in order.
 
-    Attributes (all ``[N]`` int64, N = number of pairs):
+    The four arrays are ``[N]`` int64, N = number of pairs. An episode's last state (the one its
+    last action leads to) is not stored: it is ``mdp.next_state[state[-1], action[-1]]``.
+
+    Attributes:
         episode: episode label of each pair (pairs of one episode are contiguous).
         step: position of the pair within its episode, 0, 1, 2, ...
         state: state index s_t.
         action: action index a_t taken in s_t.
 
-    An episode's last state (the one its last action leads to) is not stored: it is
-    ``mdp.next_state[state[-1], action[-1]]``.
+    Raises:
+        InputError: the four are not 1-D arrays of equal length.
     """
 
     episode: np.ndarray
@@ -58,12 +61,26 @@ class Trajectories:
         return [(self.state[self.episode == e], self.action[self.episode == e]) for e in self.episode_ids]
 
     def first(self, n_episodes: int) -> Trajectories:
-        """The first ``n_episodes`` episodes."""
+        """The first ``n_episodes`` episodes.
+
+        Args:
+            n_episodes: how many, in the order the episodes appear.
+
+        Returns:
+            Their pairs (all of them when there are fewer episodes).
+        """
         keep = np.isin(self.episode, self.episode_ids[:n_episodes])
         return Trajectories(self.episode[keep], self.step[keep], self.state[keep], self.action[keep])
 
     def paths(self, mdp: TabularMDP) -> list[np.ndarray]:
-        """Visited states of each episode, including the state its last action leads to."""
+        """Visited states of each episode, including the state its last action leads to.
+
+        Args:
+            mdp: the task the pairs belong to.
+
+        Returns:
+            One array of state indices per episode, in episode order.
+        """
         out = []
         for states, actions in self.episodes():
             last = mdp.next_state[states[-1], actions[-1]] if len(states) else None
