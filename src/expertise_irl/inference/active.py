@@ -167,6 +167,14 @@ def expected_information_gain(
         max_candidates: at most this many candidates are scored (a seeded subsample).
         target: ``"joint"`` or ``"beta"``.
         rng: a Generator or a seed; the result is a pure function of it.
+
+    Returns:
+        The scored candidates (:class:`StartScores`).
+
+    Raises:
+        InputError: ``belief`` is neither kind, or a DiscreteBelief comes without ``mdp`` or was
+            solved on another MDP; an unknown ``target``, a size below 1, or a candidate that is
+            not a non-terminal state.
     """
     b, mdp = _resolve(belief, mdp)
     rng = _check_sizes(b, mdp, target, {"n_samples": n_samples, "max_steps": max_steps,
@@ -201,7 +209,20 @@ def expected_information_gain(
 def next_start(belief, candidates=None, mdp: TabularMDP | None = None, **kwargs) -> int:
     """The candidate start whose episode is expected to tell the most about (θ, β).
 
-    Same arguments as :func:`expected_information_gain` (``n_samples``, ``max_steps``,
-    ``max_candidates``, ``target``, ``rng``); deterministic for a given seed.
+    Deterministic for a given seed.
+
+    Args:
+        belief: a :class:`DiscreteBelief` (then ``mdp`` is required) or an
+            :class:`~expertise_irl.inference.online.OnlineEstimator`.
+        candidates: start states to choose from; default ``mdp.initial_states()``.
+        mdp: the task the belief was solved on.
+        **kwargs: the options of :func:`expected_information_gain` (``n_samples``, ``max_steps``,
+            ``max_candidates``, ``target``, ``rng``).
+
+    Returns:
+        The state index of the best candidate.
+
+    Raises:
+        InputError: as :func:`expected_information_gain`.
     """
     return expected_information_gain(belief, candidates, mdp, **kwargs).best

@@ -96,8 +96,18 @@ class DiscreteBelief:
     ) -> DiscreteBelief:
         """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
 
-        ``solve_kwargs`` go to :func:`~expertise_irl.planning.soft_vi.solve` (tol, chunk_size, progress,
-        model...).
+        Args:
+            mdp: the task.
+            hypotheses: the set Ψ = Θ × B, with the MDP's features.
+            prior: ``[H]`` prior weights (normalised here).
+            **solve_kwargs: go to :func:`~expertise_irl.planning.soft_vi.solve` (tol, chunk_size,
+                progress, model...).
+
+        Returns:
+            The belief before any observation.
+
+        Raises:
+            InputError: the hypotheses' features do not match the MDP's, or a bad prior.
         """
         if hypotheses.thetas.shape[1] != mdp.n_features:
             raise InputError(
@@ -111,6 +121,21 @@ class DiscreteBelief:
     def from_log_policy(
         cls, hypotheses: HypothesisSet, log_policy: np.ndarray, *, prior: np.ndarray | None = None
     ) -> DiscreteBelief:
+        """A belief on log-policies already solved, e.g. a cached ``solve(...).log_policy``.
+
+        Args:
+            hypotheses: the set Ψ = Θ × B, H = len(hypotheses).
+            log_policy: ``[H, S, A]`` log π_h(a|s).
+            prior: ``[H]`` prior weights, finite and non-negative with a positive total (normalised
+                here); uniform when None.
+
+        Returns:
+            The belief before any observation.
+
+        Raises:
+            ArgumentError: ``log_policy`` of the wrong shape.
+            InputError: ``log_policy`` holds NaN or a value above 0, or a bad prior.
+        """
         H = len(hypotheses)
         log_policy = np.asarray(log_policy, dtype=np.float64)
         if log_policy.ndim != 3 or log_policy.shape[0] != H:
@@ -131,7 +156,20 @@ class DiscreteBelief:
 
     # ----------------------------------------------------------------- updates
     def update_pairs(self, states, actions, *, episode: int | None = None) -> DiscreteBelief:
-        """Condition on (state, action) pairs (one trajectory or any batch of them)."""
+        """Condition on (state, action) pairs (one trajectory or any batch of them).
+
+        Args:
+            states: ``[N]`` state indices.
+            actions: ``[N]`` action indices.
+            episode: the episode's label, named in messages.
+
+        Returns:
+            The new belief.
+
+        Raises:
+            InputError: pairs out of range or of unequal length, or a pair impossible under every
+                hypothesis still possible (the message names it).
+        """
         label = (lambda i: f"episode {episode} step {i}") if episode is not None else None
         states, actions = check_pairs(self.log_policy, states, actions, label=label)
         total = self.log_likelihood + total_log_likelihood(self.log_policy, states, actions)
@@ -152,11 +190,34 @@ class DiscreteBelief:
         return replace(self, log_likelihood=total, n_observed=self.n_observed + len(states))
 
     def update_action(self, state: int, action: int) -> DiscreteBelief:
-        """Streaming update with a single observed action."""
+        """Streaming update with a single observed action.
+
+        Args:
+            state: the state index.
+            action: the action index.
+
+        Returns:
+            The new belief.
+
+        Raises:
+            InputError: as :meth:`update_pairs`.
+        """
         return self.update_pairs([state], [action])
 
     def update_trajectory(self, states, actions, *, episode: int | None = None) -> DiscreteBelief:
-        """Update with one whole trajectory (Eq. 13)."""
+        """Update with one whole trajectory (Eq. 13).
+
+        Args:
+            states: ``[T]`` the trajectory's states.
+            actions: ``[T]`` its actions.
+            episode: the episode's label, named in messages.
+
+        Returns:
+            The new belief.
+
+        Raises:
+            InputError: as :meth:`update_pairs`.
+        """
         return self.update_pairs(states, actions, episode=episode)
 
     def update(self, trajs: Trajectories, *, per_action: bool = False) -> DiscreteBelief:
@@ -165,6 +226,17 @@ class DiscreteBelief:
         The posterior is the same either way. Without ``per_action`` every pair is counted in
         one pass; only if that leaves no hypothesis possible are the episodes taken one at a
         time, to name the step where the last one became impossible.
+
+        Args:
+            trajs: the demonstrations.
+            per_action: condition one action at a time.
+
+        Returns:
+            The new belief.
+
+        Raises:
+            InputError: a pair out of range, or the episode and step where the last possible
+                hypothesis became impossible.
         """
         check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         if not per_action and len(trajs):
@@ -255,7 +327,18 @@ class DiscreteBelief:
 
         E[β], E[θ], entropy, expertise-group probabilities and the 90% band of the β
         marginal. Equivalent to streaming :meth:`update_action` over every pair, but
-        vectorised. ``max_block`` bounds the ``H × pairs`` block held in memory at once.
+        vectorised.
+
+        Args:
+            trajs: the demonstrations, after everything this belief has observed.
+            truth: the index of the true hypothesis, whose probability is traced (NaN without it).
+            max_block: bounds the ``H × pairs`` block held in memory at once.
+
+        Returns:
+            The estimates, index 0 before the first action of ``trajs``.
+
+        Raises:
+            InputError: a pair out of range, or one impossible under every hypothesis.
         """
         states, actions = check_pairs(self.log_policy, trajs.state, trajs.action, label=_traj_label(trajs))
         H, N = len(self.hypotheses), len(states)

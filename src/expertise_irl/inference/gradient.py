@@ -155,20 +155,34 @@ def map_estimate(
     model: str = DEFAULT_MODEL,
     concentration: float | None = None,
 ) -> MAPResult:
-    """Maximise log P(Ξ | θ, β) + log p(z, b), the log posterior density in x = (z, b), by
-    L-BFGS-B from ``n_starts`` random starts, then take the Laplace approximation there.
+    """The MAP estimate of (θ, β) by L-BFGS-B from random starts, and the Laplace approximation there.
 
-    The prior ``prior`` (``"log-uniform"`` or ``"paper"``) with θ's Dirichlet concentration
-    ``concentration`` (default: the prior's, :func:`.priors.concentration_of`) is written in x
-    by :func:`.priors.log_prior_unconstrained`; a ``log_prior(theta, beta)`` given instead is a
-    density on (θ, β), written in x by :func:`.priors.unconstrained_from_density`. Either way the
-    optimum maximises L·∏θ_i^α·p(β)·β (α = 1 for a given ``log_prior``, whose own θ density is
-    part of it). Starts: θ uniform on the simplex, log β uniform on ``log beta_range``. The β
-    search is bounded to ``beta_range`` (default: the support of ``prior``); θ moves freely on
-    the simplex. ``model`` is the observation model. ``mdp`` and ``trajs`` may be equal-length
-    lists, one per task of the same person: the log-likelihoods are summed.
-    ``progress(done, n_starts)`` is called after each start. ``rng`` also draws the Laplace
-    Gaussian's samples (θ's intervals), after the starts.
+    It maximises log P(Ξ | θ, β) + log p(z, b), the log posterior density in x = (z, b), that is
+    L·∏θ_i^α·p(β)·β (α = 1 for a given ``log_prior``, whose own θ density is part of it).
+
+    Args:
+        mdp: the task, or a list of tasks of the same person (their log-likelihoods are summed).
+        trajs: the demonstrations, or a list of them as long as ``mdp``'s, one per task.
+        n_starts: runs of L-BFGS-B, from θ uniform on the simplex and log β uniform on
+            ``log beta_range``.
+        rng: draws the starts, then the Laplace Gaussian's samples (θ's intervals).
+        log_prior: a density ``log_prior(theta, beta)`` on (θ, β) to use instead of ``prior``
+            (written in x by :func:`.priors.unconstrained_from_density`).
+        beta_range: bounds of the β search (default: the support of ``prior``); θ moves freely.
+        tol: soft value iteration's tolerance in the likelihood.
+        progress: ``progress(done, n_starts)``, called after each start.
+        prior: ``"log-uniform"`` or ``"paper"`` (written in x by
+            :func:`.priors.log_prior_unconstrained`).
+        model: the observation model of :mod:`expertise_irl.models`.
+        concentration: θ's Dirichlet concentration (default: the prior's,
+            :func:`.priors.concentration_of`).
+
+    Returns:
+        The estimate, the runs and the Laplace approximation.
+
+    Raises:
+        InputError: ``n_starts`` below 1, ``beta_range`` not 0 < low < high, an unknown ``prior``
+            or ``model``, or tasks and demonstrations that do not pair up.
     """
     enable_float64()
     if n_starts < 1:

@@ -90,7 +90,14 @@ class NUTSResult:
         return float(self.beta.mean())
 
     def credible_intervals(self, prob: float = 0.9) -> dict:
-        """Equal-tailed intervals: ``{"beta": [low, high], "theta": [[low, high], ...]}``."""
+        """Equal-tailed intervals of the draws, all chains together.
+
+        Args:
+            prob: the intervals' probability.
+
+        Returns:
+            ``{"beta": [low, high], "theta": [[low, high], ...]}``.
+        """
         return credible_intervals(self.theta.reshape(-1, self.theta.shape[-1]), self.beta.ravel(), prob)
 
 
@@ -116,26 +123,44 @@ def nuts_posterior(
 ) -> NUTSResult:
     """Sample P(θ, β | Ξ) with NUTS on the same log-density as :func:`map_estimate`.
 
-    ``prior`` names the prior (``"log-uniform"``, the default: θ ~ Dirichlet(α) on the simplex,
-    α = ``concentration`` or the prior's default (:func:`.priors.concentration_of`), and log β
-    uniform on [1e-3, 1e2]; ``"paper"``: θ uniform, β ~ Normal(5.005, 1.5) truncated to
-    [0.01, 10]); ``theta_prior``/``beta_prior`` (NumPyro distributions) replace either part.
     The draws are of the posterior on (θ, β) whatever the sampler's coordinates (their
     Jacobians are in the potential), so its means do not depend on them as MAP's mode does.
-    ``model`` is the observation model. ``mdp`` and ``trajs`` may be equal-length lists, one
-    per task of the same person: the log-likelihoods are summed.
-
     Each chain is its own compiled program; the chains run in threads, as many at once as
     there are CPU cores, and the draws do not depend on how many run at once.
-    ``progress(done, total)`` counts iterations summed over the chains (warm-up included),
-    every :data:`~.nuts_kernel.CHUNK` iterations of a chain. ``laplace_init`` starts each chain near a mode
-    with the Laplace approximation as its mass matrix (see :func:`~.nuts_kernel._laplace_start`);
-    ``dense_mass`` adapts a dense mass matrix (the default) instead of a diagonal one;
-    ``warm_start`` starts every solve at the chain's last draw instead of at zero (same target;
-    it was slower in ``benchmarks/nuts_speed.py``, so it is off by default). ``target_accept``
-    is the step-size adaptation's target acceptance (NumPyro's default, 0.8; raising it to
-    0.95 halved the divergences of experts' posteriors on ``corridor`` at 2-4× the time and,
-    for one person, a fraction of the effective samples: docs/calibration.md).
+
+    Args:
+        mdp: the task, or a list of tasks of the same person (their log-likelihoods are summed).
+        trajs: the demonstrations, or a list of them as long as ``mdp``'s, one per task.
+        num_warmup: warm-up iterations per chain.
+        num_samples: draws kept per chain.
+        num_chains: chains.
+        seed: the seed of every chain's random key.
+        theta_prior: a NumPyro distribution replacing ``prior``'s θ part.
+        beta_prior: a NumPyro distribution replacing ``prior``'s β part.
+        tol: soft value iteration's tolerance in the likelihood.
+        progress: ``progress(done, total)`` counts iterations summed over the chains (warm-up
+            included), every :data:`~.nuts_kernel.CHUNK` iterations of a chain.
+        prior: ``"log-uniform"`` (the default: θ ~ Dirichlet(α) on the simplex and log β uniform
+            on [1e-3, 1e2]) or ``"paper"`` (θ uniform, β ~ Normal(5.005, 1.5) truncated to
+            [0.01, 10]).
+        model: the observation model of :mod:`expertise_irl.models`.
+        dense_mass: adapt a dense mass matrix (the default) instead of a diagonal one.
+        warm_start: start every solve at the chain's last draw instead of at zero (same target;
+            it was slower in ``benchmarks/nuts_speed.py``, so it is off by default).
+        laplace_init: start each chain near a mode with the Laplace approximation as its mass
+            matrix (see :func:`~.nuts_kernel._laplace_start`).
+        target_accept: the step-size adaptation's target acceptance (NumPyro's default, 0.8;
+            raising it to 0.95 halved the divergences of experts' posteriors on ``corridor`` at
+            2-4× the time and, for one person, a fraction of the effective samples:
+            docs/calibration.md).
+        concentration: α of θ's Dirichlet (default: the prior's, :func:`.priors.concentration_of`).
+
+    Returns:
+        The draws, per chain, with their diagnostics.
+
+    Raises:
+        InputError: a run setting out of range, an unknown ``prior`` or ``model``, or tasks and
+            demonstrations that do not pair up.
     """
     enable_float64()
     num_warmup, num_samples, num_chains = check_run(num_warmup, num_samples, num_chains, target_accept)

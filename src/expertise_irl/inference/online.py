@@ -166,9 +166,23 @@ class OnlineEstimator:
     new :class:`Estimate`. Per action the work is ``O(H)``: a contiguous gather of
     ``log π_h(a|s)`` for all H hypotheses and a log-sum-exp over them.
 
+    Args:
+        mdp: the task.
+        hypotheses: the set Ψ = Θ × B, with the MDP's features.
+        log_policy: ``[H, S, A]`` the hypotheses' log-policies; solved on ``mdp`` when None.
+        prior: ``[H]`` prior probabilities (uniform by default).
+        progress: as in :meth:`from_mdp`; only when ``log_policy`` is None.
+        **solve_kwargs: options of :func:`~expertise_irl.planning.soft_vi.solve`; only when
+            ``log_policy`` is None.
+
     Attributes:
         mdp: the task.
         hypotheses: the set Ψ = Θ × B.
+
+    Raises:
+        InputError: the hypotheses' features do not match the MDP's, solver options given with a
+            ``log_policy``, or a bad table or prior.
+        ArgumentError: ``log_policy`` of the wrong shape.
     """
 
     def __init__(self, mdp: TabularMDP, hypotheses: HypothesisSet, log_policy: np.ndarray | None = None, *,
@@ -208,15 +222,32 @@ class OnlineEstimator:
                  **solve_kwargs) -> OnlineEstimator:
         """Solve every hypothesis on ``mdp`` and start from ``prior`` (uniform by default).
 
-        ``progress`` is ``progress(done, total)``, called as batches of hypotheses finish, or
-        True for a progress bar on stderr; other keywords go to :func:`~expertise_irl.planning.soft_vi.solve`.
         ``OnlineEstimator(mdp, hypotheses, progress=...)`` does the same.
+
+        Args:
+            mdp: the task.
+            hypotheses: the set Ψ = Θ × B.
+            prior: ``[H]`` prior probabilities.
+            progress: ``progress(done, total)``, called as batches of hypotheses finish, or True for a
+                progress bar on stderr.
+            **solve_kwargs: options of :func:`~expertise_irl.planning.soft_vi.solve`.
+
+        Returns:
+            The estimator, with nothing observed.
         """
         return cls(mdp, hypotheses, None, prior=prior, progress=progress, **solve_kwargs)
 
     @classmethod
     def from_belief(cls, mdp: TabularMDP, belief: DiscreteBelief) -> OnlineEstimator:
-        """An estimator on ``belief``'s tables and prior (what it has observed is not carried over)."""
+        """An estimator on ``belief``'s tables and prior (what it has observed is not carried over).
+
+        Args:
+            mdp: the task ``belief`` was solved on.
+            belief: the belief whose hypotheses, log-policies and prior are taken.
+
+        Returns:
+            The estimator, with nothing observed.
+        """
         return cls(mdp, belief.hypotheses, belief.log_policy, prior=np.exp(belief.log_prior))
 
     # ---------------------------------------------------------------- observing
@@ -248,7 +279,16 @@ class OnlineEstimator:
         return (self._pairs[-1][0] + 1 if self._pairs else 0), 0
 
     def check(self, state: int, action: int) -> str | None:
-        """Why ``(state, action)`` cannot be observed now, or None if it can."""
+        """Why ``(state, action)`` cannot be observed now, or None if it can.
+
+        Args:
+            state: the state index.
+            action: the action index.
+
+        Returns:
+            A one-line reason (out of range, unavailable, from a goal, not where the open episode is),
+            or None.
+        """
         S, A = self.mdp.n_states, self.mdp.n_actions
         if not (0 <= state < S):
             return f"state {state} is out of range: the MDP has {S} states (0..{S - 1})"
@@ -267,9 +307,17 @@ class OnlineEstimator:
     def observe(self, state: int, action: int) -> Estimate:
         """Condition on one action and return the new estimate.
 
-        Raises :class:`InputError` (and changes nothing) if the pair is out of range,
-        unavailable, acts from a goal, does not follow the previous pair of the open episode,
-        or is impossible under every hypothesis.
+        Args:
+            state: the state the action was taken in.
+            action: the action index.
+
+        Returns:
+            The estimate after it.
+
+        Raises:
+            InputError: (and nothing changes) the pair is out of range, unavailable, acts from a goal,
+                does not follow the previous pair of the open episode, or is impossible under every
+                hypothesis.
         """
         return self._observe(int(state), int(action), None)
 
@@ -301,6 +349,12 @@ class OnlineEstimator:
 
         Its episode stays open at the state that action started from; if it was the episode's
         only action, the episode is gone and no episode is open.
+
+        Returns:
+            The estimate without it.
+
+        Raises:
+            InputError: no action has been observed.
         """
         if not self._pairs:
             raise InputError("nothing to undo: no action has been observed")
@@ -365,14 +419,29 @@ class OnlineEstimator:
                               self._open, len(self.hypotheses), self.mdp.n_states, self.mdp.n_actions)
 
     def save(self, path) -> None:
-        """Write :meth:`snapshot` as JSON to ``path`` (atomically); :meth:`restore` reads it back."""
+        """Write :meth:`snapshot` as JSON to ``path`` (atomically); :meth:`restore` reads it back.
+
+        Args:
+            path: the file to write.
+        """
         from ..results import write_json
 
         write_json(path, self.snapshot().to_dict())
 
     def restore(self, snap) -> Estimate:
-        """Return to the state of ``snap``: an :class:`OnlineSnapshot`, its :meth:`~OnlineSnapshot.to_dict`
-        form, or a file written by :meth:`save` (from an estimator on the same MDP and set)."""
+        """Return to the state of ``snap`` (from an estimator on the same MDP and set).
+
+        Args:
+            snap: an :class:`OnlineSnapshot`, its :meth:`~OnlineSnapshot.to_dict` form, or the path
+                of a file written by :meth:`save`.
+
+        Returns:
+            The estimate after everything the snapshot observed.
+
+        Raises:
+            InputError: no such file, not a snapshot, a snapshot of another set or MDP, or pairs that
+                cannot be observed here.
+        """
         if isinstance(snap, dict):
             snap = OnlineSnapshot.from_dict(snap)
         elif not isinstance(snap, OnlineSnapshot):
@@ -409,7 +478,18 @@ class OnlineEstimator:
         """Observe every pair of ``trajs`` in order, keeping their episode labels and steps.
 
         An episode that did not end in a goal is closed when the next one begins, and left open
-        if it is the last (so a recording cut short mid-episode can be continued)."""
+        if it is the last (so a recording cut short mid-episode can be continued).
+
+        Args:
+            trajs: the demonstrations, episodes in increasing label order.
+
+        Returns:
+            The estimate after the last pair.
+
+        Raises:
+            InputError: episode labels that decrease, a pair after its episode ended, or a pair that
+                cannot be observed (as :meth:`observe`); the message names its episode and step.
+        """
         for e, t, s, a in zip(trajs.episode.tolist(), trajs.step.tolist(), trajs.state.tolist(),
                               trajs.action.tolist(), strict=True):
             if self._pairs and e != self._pairs[-1][0]:
