@@ -32,8 +32,10 @@ class ConvergenceError(ExpertiseIRLError, RuntimeError):
 
 
 class ArgumentError(ExpertiseIRLError, ValueError):
-    """A function of the package was called with an array of the wrong shape: a programming
-    error (the caller built it wrong), not the user's data."""
+    """A function of the package was called with an array of the wrong shape.
+
+    A programming error (the caller built it wrong), not the user's data.
+    """
 
 
 def where(source: str | Path | None, line: int | None = None, col: int | None = None) -> str:

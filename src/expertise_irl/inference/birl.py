@@ -270,10 +270,12 @@ def extended_birl(
     """Sample P(θ, β | Ξ) with Algorithm 1 (see the module docstring for every choice made).
 
     Args:
-        mdp: the task; trajs: the demonstrations Ξ (checked with
+        mdp: the task.
+        trajs: the demonstrations Ξ (checked with
             :func:`~expertise_irl.demos.trajectories.validate`).
         n_iter: iterations K of Algorithm 1.
-        delta: θ lattice step δ; beta_step: β lattice step.
+        delta: θ lattice step δ.
+        beta_step: β lattice step.
         theta_max: box side (box variant; a multiple of ``delta``).
         beta_range: (βmin, βmax).
         lam: bound λ on ‖θ‖₁ (box variant; ≥ delta).
@@ -293,6 +295,9 @@ def extended_birl(
         beta_ratio: multiplicative β steps (β_{j+1} = β_j·beta_ratio from βmin; > 1) instead of the
             additive ``beta_step``: a lattice even in log β, whose points carry the prior mass of
             their cells (density × β). Not the paper's; see the module docstring.
+
+    Returns:
+        The chain's means, its walk and its acceptance statistics.
 
     Raises:
         InputError: a bad parameter (the message names it) or demonstrations impossible in ``mdp``.
