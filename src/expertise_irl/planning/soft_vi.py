@@ -248,6 +248,9 @@ def solve(
             (the module's "Start values"; default :func:`default_method`). The guarantee on V/β
             is the same whichever.
 
+    Returns:
+        The values, log-policies and iteration counts of every hypothesis, in the order given.
+
     Raises:
         InputError: non-finite θ, β <= 0, θ/β too large, or an unknown option.
         ArgumentError: θ, β or ``v_init`` of the wrong shape, or ``v_init`` not finite.
@@ -256,10 +259,7 @@ def solve(
     enable_float64()
     theta, beta = _as_hypotheses(mdp, theta, beta)
     check_model(model)
-    if method is None:
-        method = default_method(mdp)
-    if method not in METHODS:
-        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    method = _check_method(mdp, method)
     if model == "boltzmann":  # hard values: SOR trials fail and cost sweeps
         return _solve_hard(mdp, theta, beta, tol=tol, max_iter=max_iter, chunk_size=chunk_size,
                            dtype=dtype, progress=progress, lanes=lanes, method=method)
@@ -268,6 +268,15 @@ def solve(
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
     return _solve_two_phase(mdp, theta, beta, progress, opts)
+
+
+def _check_method(mdp: TabularMDP, method: str | None) -> str:
+    """``method``, or :func:`default_method`'s for ``mdp`` when None; InputError if unknown."""
+    if method is None:
+        method = default_method(mdp)
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    return method
 
 
 def _solve_hard(mdp, theta, beta, *, progress, **opts) -> SoftSolution:
