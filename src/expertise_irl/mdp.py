@@ -229,7 +229,14 @@ class TabularMDP:
         return self.reward_offset is not None
 
     def reward(self, theta) -> np.ndarray:
-        """``[..., S, A]`` reward ``θ·φ(s, a) + reward_offset[s, a]`` of ``theta [..., K]``."""
+        """``[..., S, A]`` reward ``θ·φ(s, a) + reward_offset[s, a]`` of ``theta [..., K]``.
+
+        Args:
+            theta: reward weights ``[..., K]`` (any leading batch axes).
+
+        Returns:
+            The reward of every move, ``[..., S, A]``.
+        """
         r = np.einsum("sak,...k->...sa", self.features, np.asarray(theta, dtype=np.float64))
         return r + self.reward_offset if self.has_offset else r
 
@@ -243,7 +250,14 @@ class TabularMDP:
         return np.concatenate([self.features, self.reward_offset[..., None]], axis=-1)
 
     def reward_weights(self, theta) -> np.ndarray:
-        """``theta [..., K]`` with the offset's weight 1 appended when there is an offset."""
+        """``theta [..., K]`` with the offset's weight 1 appended when there is an offset.
+
+        Args:
+            theta: reward weights ``[..., K]``.
+
+        Returns:
+            ``[..., K']``, the weights of :meth:`reward_basis`.
+        """
         theta = np.asarray(theta, dtype=np.float64)
         if not self.has_offset:
             return theta
@@ -269,7 +283,14 @@ class TabularMDP:
         return f" (cell x={x}, y={y})"
 
     def describe_state(self, s: int) -> str:
-        """Human-readable name of a state for messages, e.g. ``state 12 (cell x=3, y=1)``."""
+        """Human-readable name of a state for messages, e.g. ``state 12 (cell x=3, y=1)``.
+
+        Args:
+            s: the state index.
+
+        Returns:
+            The name.
+        """
         return f"state {s}{self._cell(s)}"
 
     def _reaches_terminal(self) -> np.ndarray:
@@ -293,7 +314,11 @@ class TabularMDP:
 
     # ---------------------------------------------------------------- archive
     def save(self, path: str | Path) -> None:
-        """Write the MDP archive (``.npz``, format in the README)."""
+        """Write the MDP archive (``.npz``, format in the README).
+
+        Args:
+            path: the file to write.
+        """
         arrays: dict[str, np.ndarray] = {
             "next_state": self.next_state,
             "features": self.features,
@@ -317,7 +342,17 @@ class TabularMDP:
 
     @classmethod
     def load(cls, path: str | Path) -> TabularMDP:
-        """Read an MDP archive; missing or malformed entries raise :class:`InputError`."""
+        """Read an MDP archive (``.npz``, format in the README).
+
+        Args:
+            path: the archive.
+
+        Returns:
+            The MDP, named by its path.
+
+        Raises:
+            InputError: no such file, or missing or malformed entries.
+        """
         path = Path(path)
         if not path.is_file():
             raise InputError(f"{path}: no such file")
@@ -325,7 +360,18 @@ class TabularMDP:
 
     @classmethod
     def from_bytes(cls, data: bytes, *, source: str = "<mdp>") -> TabularMDP:
-        """An MDP archive's content (the bytes of a ``.npz`` file); ``source`` names it in messages."""
+        """An MDP archive's content (the bytes of a ``.npz`` file).
+
+        Args:
+            data: the bytes.
+            source: names the archive in messages.
+
+        Returns:
+            The MDP.
+
+        Raises:
+            InputError: not a readable archive of plain arrays, or missing or malformed entries.
+        """
         import io
 
         path = source
