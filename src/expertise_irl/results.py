@@ -230,8 +230,15 @@ def write_samples_csv(path: str | Path, chain, beta, theta, feature_names) -> Pa
 
 
 def write_result(path: str | Path, result: Result, *, samples_path: str | Path | None = None) -> Result:
-    """Write ``result`` as strict JSON (:func:`write_json`); draws beyond :data:`INLINE_DRAWS` go to
-    ``samples_path`` (default :func:`samples_path_for` ``path``) and the JSON names that file.
+    """Write ``result`` as strict JSON (:func:`write_json`), atomically.
+
+    Draws beyond :data:`INLINE_DRAWS` go to a CSV file and the JSON names that file.
+
+    Args:
+        path: the JSON file to write.
+        result: the result.
+        samples_path: where the draws go when they do not stay inline (default
+            :func:`samples_path_for` ``path``).
 
     Returns:
         The result as written (its ``samples`` the CSV's path when they went there).
@@ -248,6 +255,12 @@ def write_result(path: str | Path, result: Result, *, samples_path: str | Path |
 def read_result(path: str | Path) -> Result:
     """The :class:`~expertise_irl.result.Result` in ``path`` (written by any version of the package).
 
+    Args:
+        path: a result JSON written by ``infer``, ``demo``, ``study`` or :func:`write_result`.
+
+    Returns:
+        The typed result.
+
     Raises:
         InputError: naming ``path`` if it is not JSON or not a result.
     """
@@ -263,7 +276,14 @@ def is_number(x) -> bool:
 def load_result(path: str | Path) -> dict[str, Any]:
     """Read and check a result JSON written by ``infer`` or ``demo``.
 
-    Raises :class:`InputError` naming ``path`` if it is not JSON or not a result.
+    Args:
+        path: the JSON file.
+
+    Returns:
+        The document as parsed, checked to be a result.
+
+    Raises:
+        InputError: naming ``path`` if it is not JSON or not a result.
     """
     path = Path(path)
     text = read_text(path, "not a result JSON (not UTF-8 text)")
