@@ -26,13 +26,12 @@ MODELS = ("maxent", "maxent-relative", "boltzmann")
 DEFAULT_MODEL = "maxent"
 
 
-def check_model(model: str, what: str = "model") -> str:
-    """``model`` if it is known, else :class:`~expertise_irl.errors.InputError` naming the choices."""
-    from .errors import InputError
+def check_model(model: str, field: str = "model") -> str:
+    """``model`` if it is known, else an :class:`~expertise_irl.options.OptionError` naming
+    ``field`` and the choices."""
+    from .options import one_of
 
-    if model not in MODELS:
-        raise InputError(f"{what} must be one of {', '.join(MODELS)}, got {model!r}")
-    return model
+    return one_of(model, MODELS, field)
 
 
 def backup(model: str, q, log_n_actions, axis: int = 0):

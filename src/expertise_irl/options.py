@@ -11,7 +11,7 @@ the same message with the field's flag (``--expertise must be one of ...``), see
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from enum import StrEnum
 from typing import TypeVar
 
@@ -99,6 +99,19 @@ DEFAULT_BETAS = Preset.PAPER_SIM
 E = TypeVar("E", bound=StrEnum)
 
 
+def one_of(value: str, choices: Iterable[str], field: str) -> str:
+    """``value`` if it is one of ``choices`` (a choice that is a name among others: an observation
+    model, a prior, the methods a command takes).
+
+    Raises:
+        OptionError: naming ``field`` and the choices in order, if ``value`` is none of them.
+    """
+    choices = tuple(choices)
+    if value not in choices:
+        raise OptionError(f"{{{field}}} must be one of {', '.join(choices)}, got {value!r}", field)
+    return value
+
+
 def choose(kind: type[E], value: str | E, field: str) -> E:
     """``value`` as a member of ``kind``.
 
@@ -108,5 +121,5 @@ def choose(kind: type[E], value: str | E, field: str) -> E:
     try:
         return kind(value)
     except ValueError:
-        names = ", ".join(m.value for m in kind)
-        raise OptionError(f"{{{field}}} must be one of {names}, got {value!r}", field) from None
+        one_of(value, (m.value for m in kind), field)
+        raise  # (unreachable: one_of refuses what the enum refuses)

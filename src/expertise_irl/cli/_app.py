@@ -247,7 +247,7 @@ ModelOption = Annotated[str, typer.Option(
 def _check_model(model: str) -> str:
     from ..models import check_model
 
-    return check_model(model, "--model")
+    return check_model(model)
 
 
 def _report_capped(trajs, mdp, max_steps: int, model: str) -> int:

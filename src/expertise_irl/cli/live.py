@@ -82,13 +82,12 @@ def live(
     starts coarse and is refined from every finished episode after each one. Stop with Ctrl-C;
     run again with the same --out to continue.
     """
-    from ..inference.methods import EXPERTISE
     from ..live.server import bind, is_loopback, serve
     from ..live.session import check_out_dir, open_session
+    from ..options import Expertise, choose
     from ..results import map_digest
 
-    if expertise not in EXPERTISE:
-        raise InputError(f"--expertise must be one of {', '.join(EXPERTISE)}, got {expertise!r}")
+    choose(Expertise, expertise, "expertise")
     zone_map = load_map(map_spec, goal_reward)
     mdp = zone_map.to_mdp()
     opts = _options(thetas, betas, refine, expertise)
@@ -163,11 +162,11 @@ def next_start_cmd(
     from ..demos.csv_io import read_demos_csv
     from ..inference.active import TARGETS, expected_information_gain
     from ..inference.belief import DiscreteBelief
+    from ..options import one_of
 
     if demos is None:
         raise InputError("--demos is required: the demonstrations observed so far (CSV)")
-    if target not in TARGETS:
-        raise InputError(f"--target must be one of {', '.join(TARGETS)}, got {target!r}")
+    one_of(target, TARGETS, "target")
     mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
     trajs = read_demos_csv(demos, mdp)
     opts = _options(thetas, betas, refine)

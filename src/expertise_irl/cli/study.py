@@ -150,15 +150,14 @@ def study(
     by participants are solved once; a second run on the same DIR resumes, and may change
     --figures, --group-by and --refine (docs/user-studies.md).
     """
+    from ..options import Share, choose, one_of
     from ..userstudy.evidence import parse_models
     from ..userstudy.run import ReportOptions, StudyOptions
-    from ..userstudy.study import METHODS, SHARES
+    from ..userstudy.study import METHODS
 
     path = resolve_manifest(manifest)
-    if method not in METHODS:
-        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
-    if share not in SHARES:
-        raise InputError(f"--share must be one of {', '.join(SHARES)}, got {share!r}")
+    one_of(method, METHODS, "method")  # (the command line writes each field as its flag)
+    choose(Share, share, "share")
     if models is not None and method != "discrete":
         raise InputError(f"--models needs --method discrete (got --method {method})")
     compared = parse_models(models) if models is not None else ()

@@ -31,6 +31,7 @@ import numpy as np
 from ..demos.simulation import check_start_states
 from ..errors import InputError
 from ..mdp import TabularMDP
+from ..options import one_of
 from .belief import DiscreteBelief
 from .posterior import entropy
 
@@ -97,8 +98,7 @@ def _entropies(logw: np.ndarray, target: str, n_theta: int, n_beta: int) -> np.n
 
 def _check_sizes(b: DiscreteBelief, mdp: TabularMDP, target: str, sizes: dict[str, int], rng):
     """Raise :class:`InputError` on a bad argument; return ``rng`` as a Generator."""
-    if target not in TARGETS:
-        raise InputError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    one_of(target, TARGETS, "target")
     for name, v in sizes.items():
         if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
             raise InputError(f"{name} must be an integer >= 1, got {v!r}")

@@ -54,7 +54,7 @@ def check_model_list(models: Sequence[str]) -> tuple[str, ...]:
     if not models:
         raise InputError("--models: name at least one model")
     for m in models:
-        check_model(m, "--models")
+        check_model(m, "models")
     if len(set(models)) != len(models):
         raise InputError(f"--models names a model twice: {','.join(models)}")
     return models

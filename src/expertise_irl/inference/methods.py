@@ -41,6 +41,7 @@ from ..options import (
     Expertise,
     OptionError,
     choose,
+    one_of,
 )
 from ..options import Method as MethodName
 from .priors import BETA_RANGE, DEFAULT_PRIOR, PRIORS
@@ -61,8 +62,7 @@ EXPERTISE = tuple(e.value for e in Expertise)
 
 # ----------------------------------------------------------------------------- options
 def _one_of(field: str, value: str, choices) -> None:
-    if value not in choices:
-        raise OptionError(f"{{{field}}} must be one of {', '.join(choices)}, got {value!r}", field)
+    one_of(value, choices, field)
 
 
 def _check_prior_and_model(prior: str, model: str) -> None:

@@ -77,12 +77,10 @@ DEFAULT_PRIOR = "log-uniform"
 
 
 def get_prior(name: str) -> Prior:
-    """The prior called ``name``; :class:`~expertise_irl.errors.InputError` naming the choices."""
-    from ..errors import InputError
+    """The prior called ``name``; an :class:`~expertise_irl.options.OptionError` naming the choices."""
+    from ..options import one_of
 
-    if name not in PRIORS:
-        raise InputError(f"prior must be one of {', '.join(PRIORS)}, got {name!r}")
-    return PRIORS[name]
+    return PRIORS[one_of(name, PRIORS, "prior")]
 
 
 def concentration_of(name: str, concentration: float | None = None) -> float:

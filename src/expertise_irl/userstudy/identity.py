@@ -221,7 +221,7 @@ def check_options(opts: StudyOptions, report: ReportOptions) -> bool:
     """Refuse bad options before reading anything; whether the participants' sets are refined."""
     from ..models import check_model
 
-    check_model(opts.model, "--model")
+    check_model(opts.model)
     UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
     check_expertise(opts)
     refined = refines(opts, report)

@@ -39,10 +39,10 @@ from ..options import (
     DEFAULT_THETAS,
     Expertise,
     Method,
-    OptionError,
     Preset,
     Share,
     choose,
+    one_of,
 )
 
 #: The methods a study runs (Algorithm 1 takes one task: not a participant's several).
@@ -75,9 +75,7 @@ class UserStudyConfig:
     expertise: str = field(default=DEFAULT_EXPERTISE, metadata={ADDED_FIELD: True})
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise OptionError(f"{{method}} must be one of {', '.join(METHODS)}, got {self.method!r}",
-                              "method")
+        one_of(self.method, METHODS, "method")
         choose(Share, self.share, "share")
         choose(Expertise, self.expertise, "expertise")
 
