@@ -101,6 +101,7 @@ class Point:
     has_log_posterior: bool = False
 
     def to_json(self) -> dict[str, Any]:
+        """The point as a JSON object (plain values)."""
         out: dict[str, Any] = {"theta": list(self.theta), "beta": self.beta}
         if self.probability is not None:
             out["probability"] = self.probability
@@ -110,6 +111,14 @@ class Point:
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Point:
+        """The point in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The point.
+        """
         return cls(_floats(doc["theta"]), float(doc["beta"]), _opt_float(doc.get("probability")),
                    _opt_float(doc.get("log_posterior")), "log_posterior" in doc)
 
@@ -145,7 +154,14 @@ class Estimate:
 
 @dataclass(frozen=True)
 class Marginals:
-    """The discrete posterior's marginals of β and of θ (values and their probabilities)."""
+    """The discrete posterior's marginals of β and of θ (values and their probabilities).
+
+    Attributes:
+        beta_values: the βs of the set.
+        beta_probabilities: P(β) of each.
+        theta_values: the θs of the set.
+        theta_probabilities: P(θ) of each.
+    """
 
     beta_values: tuple[float, ...]
     beta_probabilities: tuple[float, ...]
@@ -153,12 +169,21 @@ class Marginals:
     theta_probabilities: tuple[float, ...]
 
     def to_json(self) -> dict[str, Any]:
+        """The marginals as a JSON object (plain values)."""
         return {"beta": {"values": list(self.beta_values), "probabilities": list(self.beta_probabilities)},
                 "theta": {"values": [list(t) for t in self.theta_values],
                           "probabilities": list(self.theta_probabilities)}}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Marginals:
+        """The marginals in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The marginals.
+        """
         b, t = doc["beta"], doc["theta"]
         return cls(_floats(b["values"]), _floats(b["probabilities"]), tuple(_floats(v) for v in t["values"]),
                    _floats(t["probabilities"]))
@@ -169,7 +194,15 @@ class Hypotheses:
     """Every hypothesis of a discrete set, column by column (row ``i`` is hypothesis ``i``).
 
     A log-likelihood or log posterior of −∞ (a hypothesis that cannot produce an observed action)
-    is None, as the JSON's null."""
+    is None, as the JSON's null.
+
+    Attributes:
+        theta: θ of each hypothesis.
+        beta: β of each.
+        log_likelihood: log P(Ξ | h) of each.
+        log_posterior: its normalised log posterior.
+        probability: its posterior probability.
+    """
 
     theta: tuple[tuple[float, ...], ...]
     beta: tuple[float, ...]
@@ -181,12 +214,21 @@ class Hypotheses:
         return len(self.beta)
 
     def to_json(self) -> list[dict[str, Any]]:
+        """The hypotheses as JSON objects, one per row."""
         return [{"theta": list(t), "beta": b, "log_likelihood": ll, "log_posterior": lp, "probability": p}
                 for t, b, ll, lp, p in zip(self.theta, self.beta, self.log_likelihood, self.log_posterior,
                                            self.probability, strict=True)]
 
     @classmethod
     def from_json(cls, rows: Sequence[Mapping[str, Any]]) -> Hypotheses:
+        """The hypotheses in ``rows``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            rows: the JSON objects, one per hypothesis,.
+
+        Returns:
+            The hypotheses.
+        """
         return cls(tuple(_floats(r["theta"]) for r in rows), tuple(float(r["beta"]) for r in rows),
                    tuple(_opt_float(r.get("log_likelihood")) for r in rows),
                    tuple(_opt_float(r.get("log_posterior")) for r in rows),
@@ -195,7 +237,17 @@ class Hypotheses:
 
 @dataclass(frozen=True)
 class TraceEntry:
-    """The belief after one action (``--per-action``); the first entry, the prior, has no action."""
+    """The belief after one action (``--per-action``); the first entry, the prior, has no action.
+
+    Attributes:
+        episode: the action's episode (None for the prior).
+        step: its step in the episode (None for the prior).
+        beta_hat: E[β].
+        theta_hat: E[θ].
+        entropy: the posterior's entropy (nats).
+        group_probabilities: the posterior mass of each expertise group.
+        beta_band: the β marginal's 5% and 95% quantiles.
+    """
 
     episode: int | None
     step: int | None
@@ -206,12 +258,21 @@ class TraceEntry:
     beta_band: tuple[float, float]  # the β marginal's 5% and 95% quantiles
 
     def to_json(self) -> dict[str, Any]:
+        """The entry as a JSON object (plain values)."""
         return {"episode": self.episode, "step": self.step, "beta_hat": self.beta_hat,
                 "theta_hat": list(self.theta_hat), "entropy": self.entropy,
                 "group_probabilities": dict(self.group_probabilities), "beta_band": list(self.beta_band)}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> TraceEntry:
+        """The entry in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The entry.
+        """
         band = doc.get("beta_band") or (math.nan, math.nan)
         return cls(doc.get("episode"), doc.get("step"), float(doc["beta_hat"]),
                    _floats(doc.get("theta_hat") or ()), float(doc["entropy"]),
@@ -239,18 +300,32 @@ class DiscretePosterior:
 
 @dataclass(frozen=True)
 class Samples:
-    """Posterior draws (birl, nuts): the chain of each, β and θ (``[n, K]``; a study with ``--share
-    beta``: ``[n, tasks, K]``)."""
+    """Posterior draws (birl, nuts): the chain of each, β and θ.
+
+    Attributes:
+        chain: the chain of each draw.
+        beta: β of each draw.
+        theta: θ of each draw, ``[n, K]`` (a study with ``--share beta``: ``[n, tasks, K]``).
+    """
 
     chain: tuple[int, ...]
     beta: tuple[float, ...]
     theta: tuple[Any, ...]
 
     def to_json(self) -> dict[str, Any]:
+        """The draws as a JSON object (plain values)."""
         return {"chain": list(self.chain), "beta": list(self.beta), "theta": thaw(self.theta)}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Samples:
+        """The draws in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The draws.
+        """
         return cls(tuple(int(c) for c in doc["chain"]), _floats(doc["beta"]), freeze(doc["theta"]))
 
 
@@ -271,10 +346,19 @@ class Misspecification:
     details: Mapping[str, Any] = field(default_factory=_empty)
 
     def to_json(self) -> dict[str, Any]:
+        """The verdict as a JSON object (plain values)."""
         return {"check": self.check, **thaw(self.details), "verdict": self.verdict, "reason": self.reason}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Misspecification:
+        """The verdict in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The verdict.
+        """
         rest = {k: v for k, v in doc.items() if k not in ("check", "verdict", "reason")}
         return cls(str(doc.get("check", "")), str(doc.get("verdict", "")), str(doc.get("reason", "")),
                    freeze(rest))
@@ -299,6 +383,7 @@ class Diagnostics:
     details: Mapping[str, Any] = field(default_factory=_empty)
 
     def to_json(self) -> dict[str, Any]:
+        """The diagnostics as a JSON object (plain values)."""
         out = thaw(self.details)
         if self.unavailable is not None:
             out["unavailable"] = thaw(self.unavailable)
@@ -312,6 +397,14 @@ class Diagnostics:
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Diagnostics:
+        """The diagnostics in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The diagnostics.
+        """
         known = ("warnings", "unavailable", "misspecification", "identifiability")
         mis = doc.get("misspecification")
         return cls(None if "warnings" not in doc else tuple(str(w) for w in doc["warnings"] or ()),
@@ -343,8 +436,9 @@ class ChangingExpertise:
 
 @dataclass(frozen=True)
 class Refinement:
-    """An adaptive set's record (:mod:`~expertise_irl.inference.adaptive`): why it stopped, every
-    round, what it cost.
+    """An adaptive set's record (:mod:`~expertise_irl.inference.adaptive`).
+
+    Why it stopped, every round, what it cost.
 
     Attributes:
         converged: whether the estimate settled before a cap.
@@ -362,6 +456,14 @@ class Refinement:
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Refinement:
+        """The record in ``doc``, as :meth:`to_json` (or an earlier version) wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The record.
+        """
         return cls(doc.get("converged"), doc.get("stop_reason"), doc.get("prior"),
                    freeze(doc.get("rounds") or ()), freeze(doc))
 
@@ -372,11 +474,23 @@ class Settings:
 
     The common entries are attributes (None where a command does not record them); ``values``
     holds every entry in the order written.
+
+    Attributes:
+        values: every entry, read-only.
     """
 
     values: Mapping[str, Any] = field(default_factory=_empty)
 
     def get(self, key: str, default: Any = None) -> Any:
+        """The entry ``key``, or ``default`` when it is not recorded.
+
+        Args:
+            key: the entry's name.
+            default: what to return without it.
+
+        Returns:
+            The entry's value.
+        """
         return self.values.get(key, default)
 
     def __getitem__(self, key: str) -> Any:
@@ -418,7 +532,14 @@ class Settings:
         return self.values.get("prior")
 
     def with_values(self, **values: Any) -> Settings:
-        """These settings with ``values`` added or replaced (new keys at the end)."""
+        """These settings with ``values`` added or replaced (new keys at the end).
+
+        Args:
+            **values: the entries to add or replace.
+
+        Returns:
+            New settings (these are unchanged).
+        """
         return Settings(freeze({**thaw(self.values), **values}))
 
 
@@ -493,15 +614,37 @@ class Result:
         return None if self.diagnostics is None else self.diagnostics.misspecification
 
     def replace(self, **changes: Any) -> Result:
-        """A copy with ``changes`` (:func:`dataclasses.replace`)."""
+        """A copy with ``changes`` (:func:`dataclasses.replace`).
+
+        Args:
+            **changes: fields and their new values.
+
+        Returns:
+            The copy.
+        """
         return replace(self, **changes)
 
     def with_extra(self, **values: Any) -> Result:
-        """A copy with top-level entries added to (or replaced in) ``extra``."""
+        """A copy with top-level entries added to (or replaced in) ``extra``.
+
+        Args:
+            **values: the entries.
+
+        Returns:
+            The copy.
+        """
         return replace(self, extra=freeze({**thaw(self.extra), **values}))
 
     def with_warnings(self, *warnings: str, first: bool = False) -> Result:
-        """A copy with ``warnings`` after (``first``: before) those it has."""
+        """A copy with ``warnings`` after (``first``: before) those it has.
+
+        Args:
+            *warnings: one line each.
+            first: put them before the existing ones.
+
+        Returns:
+            The copy.
+        """
         d = self.diagnostics or Diagnostics(warnings=())
         have = d.warnings or ()
         new = (*warnings, *have) if first else (*have, *warnings)
@@ -562,6 +705,13 @@ class Result:
     @classmethod
     def from_json(cls, doc: Mapping[str, Any], source: Any = "result") -> Result:
         """The result in ``doc`` (as :meth:`to_json` or any earlier version wrote it).
+
+        Args:
+            doc: the result document.
+            source: names the document in messages (its path, say).
+
+        Returns:
+            The typed result.
 
         Raises:
             InputError: naming ``source``, if ``doc`` is not a result or its schema is newer.
