@@ -62,17 +62,32 @@ class World:
         return "fixed" if self.mdp.has_offset else "scaled"
 
     def source(self) -> dict[str, Any]:
-        """The result's settings of the task: its name, digest, goal reward and γ."""
+        """The result's settings of the task: its name and digest.
+
+        Returns:
+            ``{"mdp": name, "mdp_digest": digest}``.
+        """
         return {"mdp": self.name, "mdp_digest": self.digest}
 
     def reward(self) -> dict[str, Any]:
+        """The result's settings of the task's reward: goal bonus, goal reward mode and γ.
+
+        Returns:
+            ``{"goal_bonus": ..., "goal_reward_mode": ..., "gamma": ...}`` (no bonus for an MDP).
+        """
         return {"goal_bonus": self.map.goal_bonus if self.map is not None else None,
                 "goal_reward_mode": self.goal_reward_mode, "gamma": self.mdp.gamma}
 
 
 @dataclass(frozen=True)
 class Demos:
-    """Demonstrations and the file they came from (None for a :class:`Trajectories` object)."""
+    """Demonstrations and the file they came from.
+
+    Attributes:
+        trajectories: the pairs.
+        path: the CSV file they were read from (None for a :class:`Trajectories` object).
+        digest: ``sha256:`` of that file (None for an object).
+    """
 
     trajectories: Trajectories
     path: str | None = None
@@ -80,10 +95,20 @@ class Demos:
 
 
 def as_world(world: Any, goal_reward: str | None = None) -> World:
-    """``world`` as a :class:`World`: a :class:`World`, a :class:`TabularMDP`, a zone map or floor
-    plan, an ``.npz`` archive's path, or a map file's path or bundled map's name.
+    """``world`` as a :class:`World`.
 
-    ``goal_reward`` (``scaled`` or ``fixed``) applies to a map, never to an MDP."""
+    Args:
+        world: a :class:`World`, a :class:`TabularMDP`, a zone map or floor plan, an ``.npz``
+            archive's path, or a map file's path or bundled map's name.
+        goal_reward: ``scaled`` or ``fixed``; applies to a map, never to an MDP.
+
+    Returns:
+        The world, with its name and digest where it has them.
+
+    Raises:
+        InputError: ``goal_reward`` given for an MDP archive or an unknown one, a ``world`` of
+            another type, or a file or name that cannot be read as a world.
+    """
     import dataclasses
 
     if isinstance(world, World):
@@ -112,8 +137,18 @@ def as_world(world: Any, goal_reward: str | None = None) -> World:
 
 
 def as_demos(demos: Any, world: World | TabularMDP) -> Demos:
-    """``demos`` as :class:`Demos`: :class:`Demos`, :class:`Trajectories` or a demonstrations CSV's path
-    (read for ``world``'s MDP)."""
+    """``demos`` as :class:`Demos`.
+
+    Args:
+        demos: :class:`Demos`, :class:`Trajectories` or a demonstrations CSV's path.
+        world: the task a CSV is read for (its MDP checks every pair).
+
+    Returns:
+        The demonstrations, with their file's path and digest when read from one.
+
+    Raises:
+        InputError: the CSV cannot be read or does not fit the MDP (:func:`read_demos_csv`).
+    """
     if isinstance(demos, Demos):
         return demos
     if isinstance(demos, Trajectories):
@@ -158,8 +193,14 @@ class Prepared:
         return self.method.progress_label(self.options)
 
     def run(self, progress: Progress = None) -> Result:
-        """The method's fit, described, recorded and checked: the result (its ``timing`` holds the
-        seconds of the inference and of the checks)."""
+        """The method's fit, described, recorded and checked.
+
+        Args:
+            progress: ``progress(done, total)`` in the method's :attr:`unit`, or None.
+
+        Returns:
+            The result; its ``timing`` holds the seconds of the inference and of the checks.
+        """
         from .inference.misspecification import add_to_result, posterior_of_run, refit_of_run
 
         mdp, trajs = self.world.mdp, self.demos.trajectories
@@ -180,6 +221,14 @@ class Prepared:
                 **self.world.reward()}
 
     def document(self, run: MethodRun) -> dict[str, Any]:
+        """The result document of a method's run, with this inference's settings and data.
+
+        Args:
+            run: what the method's fit returned.
+
+        Returns:
+            The JSON-ready document, before the misspecification checks.
+        """
         trajs = self.demos.trajectories
         doc = document(run, feature_names=self.world.mdp.feature_names, settings=self.settings(),
                        data={"episodes": trajs.n_episodes, "actions": len(trajs)})
@@ -266,12 +315,25 @@ def discrete_result(belief, *, feature_names, settings: Mapping[str, Any],
                     data: Mapping[str, Any] | None = None, trace=None, trace_index=None, refinement=None,
                     warnings=None, extra: Mapping[str, Any] | None = None,
                     run_time_s: float | None = None) -> Result:
-    """The :class:`~expertise_irl.result.Result` of a discrete posterior ``belief`` (a
-    :class:`~expertise_irl.inference.belief.DiscreteBelief`) computed elsewhere (the live page's
-    online estimate, a study participant's posterior over their tasks, the demo's).
+    """The :class:`~expertise_irl.result.Result` of a discrete posterior computed elsewhere.
 
-    ``refinement``: an adaptive set's record; ``warnings``: the run's warnings (None: the result
-    records no diagnostics); ``extra``: the command's own entries beside the inference."""
+    The live page's online estimate, a study participant's posterior over their tasks, the demo's.
+
+    Args:
+        belief: the posterior, a :class:`~expertise_irl.inference.belief.DiscreteBelief`.
+        feature_names: the features θ weighs, in order.
+        settings: what the run was asked to do.
+        data: what was read (episodes, actions, ...).
+        trace: the belief after every action (:meth:`DiscreteBelief.trace`), or None.
+        trace_index: the ``(episodes, steps)`` arrays labelling ``trace``'s entries after the first.
+        refinement: an adaptive set's record.
+        warnings: the run's warnings (None: the result records no diagnostics).
+        extra: the command's own entries beside the inference.
+        run_time_s: the inference's seconds.
+
+    Returns:
+        The result.
+    """
     doc = _discrete_document(belief, feature_names=feature_names, settings=dict(settings),
                              data=dict(data or {}), trace=trace, trace_index=trace_index)
     if refinement is not None:
