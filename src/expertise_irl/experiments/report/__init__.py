@@ -42,9 +42,17 @@ def _builder(study) -> Callable:
 def build_report(root, out=None, *, on_warning: Callable[[str], None] | None = None) -> Path:
     """Build the report of the sweep in ``root`` into ``out`` (default ``root/report``).
 
-    Returns the path of ``report.md``. ``on_warning`` is called with one line per problem that
-    does not stop the report (a sweep at scale ``smoke``, whose verdicts mean nothing; tasks still
-    unfinished).
+    Args:
+        root: the sweep directory.
+        out: the report's directory.
+        on_warning: called with one line per problem that does not stop the report (a sweep at
+            scale ``smoke``, whose verdicts mean nothing; tasks still unfinished).
+
+    Returns:
+        The path of ``report.md``.
+
+    Raises:
+        InputError: ``root`` holds no sweep, its study has no report, or no task has finished.
     """
     from .markdown import smoke_warning, unfinished_warning
     from .output import write

@@ -131,7 +131,15 @@ def workers_text(runs) -> str:
 def read_sweep(root, sort_by: tuple[str, ...] = ()) -> Sweep:
     """Read the sweep in ``root``; rows sorted by ``sort_by`` (the study's identity columns).
 
-    Raises InputError if ``root`` holds no manifest or no finished task.
+    Args:
+        root: the sweep directory.
+        sort_by: the columns the rows are sorted by.
+
+    Returns:
+        The sweep: its manifest, finished rows and timings, counts and runs.
+
+    Raises:
+        InputError: ``root`` is not a directory, holds no manifest, or no finished task.
     """
     import pandas as pd
 
