@@ -115,6 +115,14 @@ def one_of(value: str, choices: Iterable[str], field: str) -> str:
 def choose(kind: type[E], value: str | E, field: str) -> E:
     """``value`` as a member of ``kind``.
 
+    Args:
+        kind: the enumeration of the choices.
+        value: a member, or its name.
+        field: the option's name, in the message.
+
+    Returns:
+        The member.
+
     Raises:
         OptionError: naming ``field`` and the choices, if ``value`` is none of them.
     """

@@ -118,7 +118,23 @@ def compare_models(
 ) -> Comparison:
     """Fit every model in ``models`` to ``trajs`` over ``hypotheses`` (one solve per model).
 
-    ``progress(model)`` may return a ``progress(done, total)`` callback for that model's solve.
+    Args:
+        mdp: the task.
+        trajs: the demonstrations.
+        hypotheses: the set Ψ = Θ × B every model is fitted over.
+        models: names of observation models (:mod:`expertise_irl.models`).
+        holdout: the share of episodes, in (0, 1), held out (the last ones in file order) for
+            the held-out per-action log-likelihood.
+        tol: soft value iteration's tolerance.
+        progress: ``progress(model)`` may return a ``progress(done, total)`` callback for that
+            model's solve.
+
+    Returns:
+        Every model's log evidence, its difference to the best, its held-out score and estimate.
+
+    Raises:
+        InputError: an unknown model, ``holdout`` outside (0, 1), or demonstrations impossible
+            under every hypothesis of a model.
     """
     check_model_list(models)
     split = split_episodes(trajs, holdout)
