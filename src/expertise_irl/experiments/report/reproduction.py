@@ -2,11 +2,13 @@
 
 Each run folder under the reproduction folder is a sweep with its report. Its protocol is its rows'
 ``goal_reward_mode`` (rows written before the column existed: its ``config.toml``'s field of the same
-name; neither: ``scaled``), with the observation model beside it where the run's model is not the
-paper's (``model`` in ``config.toml``). A claim judged by several runs of one protocol takes the
-verdict of the paper-scale run (the one whose folder name contains ``paper``), else of the run with
-the most rows, a cell then marked "(small scale)". Beside the count of reproduced claims under each
-protocol, a second line counts them over only the claims judged under both. The paper's claims
+name; neither: ``scaled``), with the goal bonus beside it where it is not the studies' 10
+(``goal_bonus``: the finishing runs of Sec. VII pay more) and the observation model where the run's
+model is not the paper's (``model`` in ``config.toml``). A claim judged by several runs of one
+protocol takes the verdict of the paper-scale run (the one whose folder name contains ``paper``),
+else of the run with the most rows, a cell then marked "(small scale)". Beside the count of
+reproduced claims under each protocol, a second line counts them over only the claims judged under
+both. The paper's claims
 only: our methods' numbers (verdict "not judged (ours)") are left out.
 
 ``python -m expertise_irl.experiments.report.reproduction docs/reproduction [--write README.md]``
@@ -74,12 +76,19 @@ def _rows(root: Path) -> tuple[int, set[str]]:
     return count, modes
 
 
+#: The studies' goal bonus (``goal_bonus``); a run with another one is its own protocol.
+DEFAULT_GOAL_BONUS = 10.0
+
+
 def run_protocol(root: Path) -> tuple[str, int]:
     """(protocol, rows) of the run in ``root``: see the module's docstring."""
     count, modes = _rows(root)
     cfg = _config(root)
     mode = "+".join(sorted(modes)) if modes else str(cfg.get("goal_reward_mode") or DEFAULT_PROTOCOL)
     model = cfg.get("model")
+    bonus = cfg.get("goal_bonus")
+    if isinstance(bonus, int | float) and bonus != DEFAULT_GOAL_BONUS:  # another protocol
+        mode = f"{mode}, goal bonus {bonus:g}"
     return (mode if model in (None, "maxent") else f"{mode}, model {model}"), count
 
 
