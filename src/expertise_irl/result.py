@@ -30,7 +30,6 @@ them back into JSON objects and arrays.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from types import MappingProxyType
@@ -245,8 +244,10 @@ class TraceEntry:
         beta_hat: E[β].
         theta_hat: E[θ].
         entropy: the posterior's entropy (nats).
-        group_probabilities: the posterior mass of each expertise group.
-        beta_band: the β marginal's 5% and 95% quantiles.
+        group_probabilities: the posterior mass of each expertise group (None in a result written
+            before traces recorded it).
+        beta_band: the β marginal's 5% and 95% quantiles (None in a result written before traces
+            recorded it).
     """
 
     episode: int | None
@@ -254,14 +255,18 @@ class TraceEntry:
     beta_hat: float
     theta_hat: tuple[float, ...]
     entropy: float
-    group_probabilities: Mapping[str, float]
-    beta_band: tuple[float, float]  # the β marginal's 5% and 95% quantiles
+    group_probabilities: Mapping[str, float] | None = None
+    beta_band: tuple[float, float] | None = None  # the β marginal's 5% and 95% quantiles
 
     def to_json(self) -> dict[str, Any]:
-        """The entry as a JSON object (plain values)."""
-        return {"episode": self.episode, "step": self.step, "beta_hat": self.beta_hat,
-                "theta_hat": list(self.theta_hat), "entropy": self.entropy,
-                "group_probabilities": dict(self.group_probabilities), "beta_band": list(self.beta_band)}
+        """The entry as a JSON object (plain values; a part that is None is left out, as it was read)."""
+        out: dict[str, Any] = {"episode": self.episode, "step": self.step, "beta_hat": self.beta_hat,
+                               "theta_hat": list(self.theta_hat), "entropy": self.entropy}
+        if self.group_probabilities is not None:
+            out["group_probabilities"] = dict(self.group_probabilities)
+        if self.beta_band is not None:
+            out["beta_band"] = list(self.beta_band)
+        return out
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> TraceEntry:
@@ -273,10 +278,11 @@ class TraceEntry:
         Returns:
             The entry.
         """
-        band = doc.get("beta_band") or (math.nan, math.nan)
+        band, groups = doc.get("beta_band"), doc.get("group_probabilities")
         return cls(doc.get("episode"), doc.get("step"), float(doc["beta_hat"]),
                    _floats(doc.get("theta_hat") or ()), float(doc["entropy"]),
-                   freeze(doc.get("group_probabilities") or {}), (float(band[0]), float(band[1])))
+                   None if not isinstance(groups, Mapping) else freeze(groups),
+                   None if not band else (float(band[0]), float(band[1])))
 
 
 @dataclass(frozen=True)
@@ -432,6 +438,24 @@ class ChangingExpertise:
     trend: Mapping[str, Any] | None
     theta_hat: tuple[float, ...] | None = None
     trace: tuple[Mapping[str, Any], ...] | None = None
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> ChangingExpertise:
+        """The learning curve in a result document, as :meth:`Result.to_json` or an earlier version wrote it.
+
+        ``doc`` is the whole document: the curve is its top-level ``expertise_by_episode``, ``changing``,
+        ``trend``, ``theta_hat_changing`` and ``expertise_trace``.
+
+        Args:
+            doc: the result document.
+
+        Returns:
+            The learning curve and its evidence.
+        """
+        theta = doc.get("theta_hat_changing")
+        return cls(freeze(doc.get("expertise_by_episode")), freeze(doc.get("changing")),
+                   freeze(doc.get("trend")), None if theta is None else _floats(theta),
+                   freeze(doc.get("expertise_trace")))
 
 
 @dataclass(frozen=True)
@@ -739,13 +763,12 @@ class Result:
                 None if doc.get("trace") is None else tuple(TraceEntry.from_json(t) for t in doc["trace"]))
         samples = doc.get("samples")
         if isinstance(samples, Mapping):
-            samples = Samples.from_json(samples)
-        changing = None
-        if "expertise_by_episode" in doc:
-            changing = ChangingExpertise(
-                freeze(doc["expertise_by_episode"]), freeze(doc.get("changing")), freeze(doc.get("trend")),
-                None if doc.get("theta_hat_changing") is None else _floats(doc["theta_hat_changing"]),
-                freeze(doc.get("expertise_trace")))
+            try:
+                samples = Samples.from_json(samples)
+            except (KeyError, TypeError, ValueError):
+                raise InputError(f"{source}: 'samples' must hold chain, beta and theta "
+                                 f"({len(doc['feature_names'])} per draw) of equal length") from None
+        changing = ChangingExpertise.from_json(doc) if "expertise_by_episode" in doc else None
         diag = doc.get("diagnostics")
         return cls(
             method=str(doc["method"]), feature_names=tuple(doc["feature_names"]), estimate=estimate,

@@ -16,7 +16,7 @@ import hashlib
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -262,9 +262,15 @@ def read_result(path: str | Path) -> Result:
         The typed result.
 
     Raises:
-        InputError: naming ``path`` if it is not JSON or not a result.
+        InputError: naming ``path`` if it is not JSON, not a result, or a part of it is not as any
+            version wrote it.
     """
-    return Result.from_json(load_result(path), path)
+    doc = load_result(path)
+    try:
+        return Result.from_json(doc, path)
+    except (KeyError, IndexError, TypeError, ValueError) as exc:
+        raise InputError(f"{path}: a part of the result cannot be read "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 # ----------------------------------------------------------------------- reading
@@ -339,18 +345,22 @@ def _check_marginals(doc, path, K: int) -> None:
             raise InputError(f"{path}: marginals.{what}: probabilities must be finite, >= 0, not all 0")
 
 
-def load_samples(doc: dict[str, Any], path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(chain [n], beta [n], theta [n, K])`` of a sampling result.
+def load_samples(result: Result | Mapping[str, Any], path: str | Path
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(chain [n], beta [n], theta [n, K])`` of a sampling result (a :class:`Result` or its document).
 
     ``samples`` is inline (``{"chain", "beta", "theta"}``) or the path of a CSV
     ``chain,draw,beta,<feature names>``; a relative path not found as given is looked up
     in the folder of the result ``path``.
     """
     path = Path(path)
-    names = doc["feature_names"]
+    if isinstance(result, Result):
+        names, s = list(result.feature_names), result.samples
+        s = s.to_json() if isinstance(s, Samples) else s
+    else:
+        names, s = result["feature_names"], result["samples"]
     K = len(names)
-    s = doc["samples"]
-    if isinstance(s, dict):
+    if isinstance(s, Mapping):
         try:
             chain = np.asarray(s["chain"], dtype=np.int64)
             beta = np.asarray(s["beta"], dtype=float)
@@ -391,9 +401,10 @@ def _read_samples_csv(path: Path, names: Sequence[str]) -> tuple[np.ndarray, np.
     return data[:, 0].astype(np.int64), data[:, 2], data[:, 3:]
 
 
-def check_features(doc: dict[str, Any], result_path, mdp: TabularMDP, mdp_label) -> None:
+def check_features(result: Result | Mapping[str, Any], result_path, mdp: TabularMDP, mdp_label) -> None:
     """The map's features must be the result's ``feature_names``, in order."""
-    have, want = list(mdp.feature_names), list(doc["feature_names"])
+    names = result.feature_names if isinstance(result, Result) else result["feature_names"]
+    have, want = list(mdp.feature_names), list(names)
     if have != want:
         raise InputError(f"{mdp_label}: its features ({', '.join(have)}) do not match the "
                          f"feature_names of {result_path} ({', '.join(want)})")
