@@ -32,7 +32,7 @@ def plot(
     Discrete results show the marginal probabilities as bars; birl and nuts show histograms of the draws with the 90% credible interval; map shows its point estimate.
     """  # noqa: E501  (one line per paragraph: the help text wraps it)
     from ..plots.results import render_result_png
-    from ..results import check_features, check_writable, load_result
+    from ..results import check_features, check_writable, read_result
 
     inputs = [p for p in (result, mdp_path, demos) if p is not None]
     if map_spec is not None and Path(map_spec).exists():
@@ -45,11 +45,11 @@ def plot(
     _check_format(out_path)
     if demos is not None and map_spec is None and mdp_path is None:
         raise InputError(f"{demos}: --demos needs the task it was recorded on (--map or --mdp)")
-    doc = load_result(result)
+    typed = read_result(result)
     mdp = zone_map = trajs = None
     if map_spec is not None or mdp_path is not None:
         mdp, zone_map = _load_mdp(map_spec, mdp_path, map_name="--map")
-        check_features(doc, result, mdp, mdp_path if mdp_path is not None else map_spec)
+        check_features(typed, result, mdp, mdp_path if mdp_path is not None else map_spec)
         if zone_map is None and mdp.state_xy is None:
             raise InputError(f"{mdp_path}: the MDP has no grid coordinates (state_xy), so it cannot "
                              "be drawn; plot without --mdp/--demos")
@@ -60,10 +60,10 @@ def plot(
     if check:
         from ..plots.check import render_check_png
 
-        render_check_png(out_path, doc, mdp=mdp, trajs=trajs, source=result)
+        render_check_png(out_path, typed, mdp=mdp, trajs=trajs, source=result)
         _say(f"wrote {out_path}")
         return
-    render_result_png(out_path, doc, source=result, mdp=mdp, zone_map=zone_map, trajs=trajs)
+    render_result_png(out_path, typed, source=result, mdp=mdp, zone_map=zone_map, trajs=trajs)
     _say(f"wrote {out_path}")
 
 

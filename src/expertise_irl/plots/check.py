@@ -6,10 +6,14 @@ title (red when Holm's rule rejects it; the figure's title says so). Bottom (wit
 results and a map): the richer reward's departure from θ̂·φ, r(s) for entering each state, on the
 grid (blue: the person is drawn to it beyond the features, red: kept away), the demonstrations over
 it and the largest departures circled.
+
+The figure reads a typed :class:`~expertise_irl.result.Result` (its
+:class:`~expertise_irl.result.Diagnostics`); a result document is read with its ``from_json`` first.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +24,7 @@ from ..atomic import save_figure_atomic
 from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..mdp import TabularMDP
+from ..result import Diagnostics, Misspecification, Result
 from ..worlds.grid import OBSTACLE
 from . import maps
 
@@ -29,21 +34,25 @@ REJECTED, PASSED = "#c0392b", "#222222"
 #: Characters per line of the figure's title (a long reason is wrapped, not allowed to widen the page).
 TITLE_WIDTH = 120
 
-def check_figure(doc: dict[str, Any], *, mdp: TabularMDP | None = None, trajs: Trajectories | None = None,
-                 source: str | Path = "result"):
-    """The :class:`~matplotlib.figure.Figure` of ``doc``'s ``diagnostics.misspecification``."""
+def check_figure(result: Result | Mapping[str, Any], *, mdp: TabularMDP | None = None,
+                 trajs: Trajectories | None = None, source: str | Path = "result"):
+    """The :class:`~matplotlib.figure.Figure` of ``result``'s misspecification checks.
+
+    ``result`` is a :class:`~expertise_irl.result.Result` or a result document (of which only
+    ``diagnostics`` is read).
+    """
     from matplotlib.figure import Figure
 
-    diag = doc.get("diagnostics") or {}
-    mis = diag.get("misspecification")
-    if not mis:
-        why = (diag.get("unavailable") or {}).get("misspecification")
+    diag = _diagnostics(result) or Diagnostics()
+    mis = diag.misspecification
+    if mis is None or not (mis.check or mis.verdict or mis.reason or mis.details):
+        why = (diag.unavailable or {}).get("misspecification")
         raise InputError(f"{source}: the result has no diagnostics.misspecification ("
                          + (why if why else "infer and study write it with --check fast or full, the default")
                          + ")")
-    pred = mis.get("predictive") or {}
+    pred = mis.details.get("predictive") or {}
     stats = pred.get("statistics") or {}
-    comp = mis.get("competitor")
+    comp = mis.details.get("competitor")
     show_map = comp is not None and mdp is not None and mdp.state_xy is not None
     rows, cols = panel_grid(len(stats))
     stat_w, map_w = 2.7 * cols, (6.5 if show_map else 0.0)
@@ -64,6 +73,14 @@ def check_figure(doc: dict[str, Any], *, mdp: TabularMDP | None = None, trajs: T
         _departure_map(right.subplots(), comp, mdp, trajs)
     fig.suptitle(_check_title(mis, comp, pred, bool(stats)), fontsize=10)
     return fig
+
+
+def _diagnostics(result: Result | Mapping[str, Any]) -> Diagnostics | None:
+    """``result``'s diagnostics, typed (a document's are read with :meth:`Diagnostics.from_json`)."""
+    if isinstance(result, Result):
+        return result.diagnostics
+    diag = result.get("diagnostics")
+    return Diagnostics.from_json(diag) if isinstance(diag, Mapping) else None
 
 
 def panel_grid(n: int) -> tuple[int, int]:
@@ -91,7 +108,7 @@ def statistic_unit(name: str, mdp: TabularMDP | None = None) -> str:
     return name
 
 
-def _statistic_panel(ax, name: str, st: dict[str, Any], replicated, mdp) -> None:
+def _statistic_panel(ax, name: str, st: Mapping[str, Any], replicated, mdp) -> None:
     values = np.array([v for v in replicated if v is not None], dtype=float)
     if values.size:
         ax.hist(values, bins=min(30, max(5, len(np.unique(values)))), color="#9db4c8", edgecolor="white")
@@ -106,22 +123,22 @@ def _statistic_panel(ax, name: str, st: dict[str, Any], replicated, mdp) -> None
     maps.tidy(ax)
 
 
-def _check_title(mis: dict[str, Any], comp, pred: dict[str, Any], has_stats: bool) -> str:
+def _check_title(mis: Misspecification, comp, pred: Mapping[str, Any], has_stats: bool) -> str:
     import textwrap
 
-    title = "\n".join(textwrap.wrap(f"{mis['verdict']} — {mis['reason']}", TITLE_WIDTH))
+    title = "\n".join(textwrap.wrap(f"{mis.verdict} — {mis.reason}", TITLE_WIDTH))
     if comp is not None:
         title += (f"\nheld-out gain of a per-state reward {comp['gain']:.3g} ± {comp['gain_se']:.2g} "
                   f"nats/action; β features {comp['beta_features']:.3g}, per-state {comp['beta_richer']:.3g}")
     if has_stats:
-        alpha = (mis.get("thresholds") or {}).get("alpha", 0.05)
-        whose = " refined" if mis.get("first") else ""  # a coarse set: the checks of the refined set
+        alpha = (mis.details.get("thresholds") or {}).get("alpha", 0.05)
+        whose = " refined" if mis.details.get("first") else ""  # a coarse set: the checks of the refined set
         title += (f"\nbars: {pred.get('replicates', 'the')} data sets simulated from the{whose} posterior; "
                   f"line: the demonstrations (red: rejected, Holm at family-wise level {alpha:g})")
     return title
 
 
-def _departure_map(ax, comp: dict[str, Any], mdp: TabularMDP, trajs: Trajectories | None) -> None:
+def _departure_map(ax, comp: Mapping[str, Any], mdp: TabularMDP, trajs: Trajectories | None) -> None:
     dep = comp["departure"][0]
     xy = mdp.state_xy
     W, H = int(xy[:, 0].max()) + 1, int(xy[:, 1].max()) + 1
@@ -160,10 +177,10 @@ def _departure_map(ax, comp: dict[str, Any], mdp: TabularMDP, trajs: Trajectorie
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=3, fontsize=8, frameon=False)
 
 
-def render_check_png(path: str | Path, doc: dict[str, Any], *, mdp: TabularMDP | None = None,
+def render_check_png(path: str | Path, result: Result | Mapping[str, Any], *, mdp: TabularMDP | None = None,
                      trajs: Trajectories | None = None, source: str | Path = "result") -> Path:
     """Save :func:`check_figure` to ``path`` (the format follows the suffix)."""
-    fig = check_figure(doc, mdp=mdp, trajs=trajs, source=source)
+    fig = check_figure(result, mdp=mdp, trajs=trajs, source=source)
     out = Path(path)
     save_figure_atomic(fig, out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()

@@ -12,14 +12,17 @@ One figure per result (any method of ``infer``, or ``demo``'s result):
   actions seen, with a dashed line where each new episode starts;
 - the result's ``diagnostics.warnings`` (non-convergence and the like), in red below.
 
-Like :mod:`.maps`, figures are built on a :class:`~matplotlib.figure.Figure` directly
-(no pyplot state). Artists carry gids so that tests can find them.
+The figures read a typed :class:`~expertise_irl.result.Result`; a result document (a dict as
+parsed from the JSON, of any earlier version) is read with :meth:`Result.from_json
+<expertise_irl.result.Result.from_json>` first. Like :mod:`.maps`, figures are built on a
+:class:`~matplotlib.figure.Figure` directly (no pyplot state). Artists carry gids so that tests can
+find them.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,8 +30,9 @@ import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullLocator
 
 from ..atomic import save_figure_atomic
-from ..errors import plural
+from ..errors import ArgumentError, plural
 from ..hypotheses import GROUP_NAMES as GROUPS
+from ..result import ChangingExpertise, Result, TraceEntry
 from ..results import SAMPLED, is_number, load_samples
 from . import maps
 
@@ -137,33 +141,36 @@ def draw_point(ax: Axes, value: float, label: str, *, lo: float, hi: float, log:
 
 
 # -------------------------------------------------------------------------- trace
-def trace_arrays(trace: list[dict[str, Any]]) -> dict[str, np.ndarray | None]:
-    """Arrays of a JSON trace: ``x`` (actions seen), ``beta_hat``, ``entropy``, ``band``
-    ``[N + 1, 2]`` and ``groups`` ``[N + 1, 3]`` (None when the result predates them),
-    and ``boundaries``: the x at which each episode after the first starts."""
-    n = len(trace)
+def trace_arrays(trace: Sequence[TraceEntry | Mapping[str, Any]]) -> dict[str, np.ndarray | None]:
+    """Arrays of a trace (its entries, or their JSON objects): ``x`` (actions seen), ``beta_hat``,
+    ``entropy``, ``band`` ``[N + 1, 2]`` and ``groups`` ``[N + 1, 3]`` (None when the result
+    predates them), and ``boundaries``: the x at which each episode after the first starts."""
+    entries = [e if isinstance(e, TraceEntry) else TraceEntry.from_json(e) for e in trace]
+    n = len(entries)
     x = np.arange(n)
     out: dict[str, np.ndarray | None] = {
         "x": x,
-        "beta_hat": np.array([e["beta_hat"] for e in trace], dtype=float),
-        "entropy": np.array([e["entropy"] for e in trace], dtype=float),
+        "beta_hat": np.array([e.beta_hat for e in entries], dtype=float),
+        "entropy": np.array([e.entropy for e in entries], dtype=float),
         "band": None,
         "groups": None,
     }
-    if all("beta_band" in e for e in trace):
-        out["band"] = np.array([e["beta_band"] for e in trace], dtype=float)
-    if all(isinstance(e.get("group_probabilities"), dict) for e in trace):
-        out["groups"] = np.array([[e["group_probabilities"].get(g, np.nan) for g in GROUPS]
-                                  for e in trace], dtype=float)
+    bands = [e.beta_band for e in entries]
+    if all(b is not None for b in bands):
+        out["band"] = np.array(bands, dtype=float)
+    groups = [e.group_probabilities for e in entries]
+    if all(g is not None for g in groups):
+        out["groups"] = np.array([[g.get(k, np.nan) for k in GROUPS] for g in groups if g is not None],
+                                 dtype=float)
     # entry i (i >= 1) is the belief after action i - 1; an episode starts at entry i when its
     # step is 0, so its boundary is drawn at x = i - 1 (the actions seen before it).
-    out["boundaries"] = np.array([i - 1 for i in range(2, n) if trace[i].get("step") == 0], dtype=int)
-    out["episodes"] = np.array([-1 if e.get("episode") is None else e["episode"] for e in trace])
+    out["boundaries"] = np.array([i - 1 for i in range(2, n) if entries[i].step == 0], dtype=int)
+    out["episodes"] = np.array([-1 if e.episode is None else e.episode for e in entries])
     return out
 
 
-def draw_trace(axes: Sequence[Axes], trace: list[dict[str, Any]], *, beta_true: float | None = None,
-               betas=None) -> Sequence[Axes]:
+def draw_trace(axes: Sequence[Axes], trace: Sequence[TraceEntry | Mapping[str, Any]], *,
+               beta_true: float | None = None, betas=None) -> Sequence[Axes]:
     """Three panels against the number of actions seen: β̂ with its 90% band, the group
     probabilities, and the posterior entropy; dashed lines where episodes start.
 
@@ -302,7 +309,7 @@ def draw_demos_on_map(ax: Axes, mdp: TabularMDP, zone_map: ZoneMap | None, trajs
 # ------------------------------------------------------------------------ figure
 def render_result_png(
     path: str | Path,
-    doc: dict[str, Any],
+    result: Result | Mapping[str, Any],
     *,
     source: str | Path = "result",
     mdp: TabularMDP | None = None,
@@ -310,7 +317,7 @@ def render_result_png(
     trajs: Trajectories | None = None,
 ) -> Path:
     """Save :func:`result_figure` to ``path`` (the format follows the suffix; PNG at dpi 120)."""
-    fig = result_figure(doc, source=source, mdp=mdp, zone_map=zone_map, trajs=trajs)
+    fig = result_figure(result, source=source, mdp=mdp, zone_map=zone_map, trajs=trajs)
     out = Path(path)
     save_figure_atomic(fig, out, dpi=maps.DPI, facecolor="white", bbox_inches="tight", pad_inches=0.08)
     fig.clear()
@@ -318,19 +325,20 @@ def render_result_png(
 
 
 def result_figure(
-    doc: dict[str, Any],
+    result: Result | Mapping[str, Any],
     *,
     source: str | Path = "result",
     mdp: TabularMDP | None = None,
     zone_map: ZoneMap | None = None,
     trajs: Trajectories | None = None,
 ):
-    """The :class:`~matplotlib.figure.Figure` of a result document (see the module docstring).
+    """The :class:`~matplotlib.figure.Figure` of a result (see the module docstring).
 
     Parameters
     ----------
-    doc : dict
-        The result, as checked by :func:`~expertise_irl.results.load_result`.
+    result : Result or dict
+        The result (:func:`~expertise_irl.results.read_result`), or its document as checked by
+        :func:`~expertise_irl.results.load_result`.
     source : str or Path
         The result's file: its folder is where a samples CSV is looked up; its name is
         in the title.
@@ -339,14 +347,17 @@ def result_figure(
         ``state_xy``) and the demonstrations to draw on it.
     """
     source = Path(source)
-    method = doc["method"]
-    names = list(doc["feature_names"])
-    K = len(names)
-    truth = doc.get("truth") if isinstance(doc.get("truth"), dict) else {}
+    if not isinstance(result, Result):
+        result = Result.from_json(result, source)
+    method = result.method
+    K = len(result.feature_names)
+    truth = result.extra.get("truth")  # demo's: what the demonstrations were simulated with
+    truth = truth if isinstance(truth, Mapping) else {}
     beta_true = truth.get("beta") if is_number(truth.get("beta")) else None
-    theta_true = truth.get("theta") if isinstance(truth.get("theta"), list) and len(
+    theta_true = truth.get("theta") if isinstance(truth.get("theta"), list | tuple) and len(
         truth.get("theta")) == K else None
-    trace = doc.get("trace") if method == "discrete" else None
+    post = result.posterior
+    trace = post.trace if method == "discrete" and post is not None else None
     draw_map = mdp is not None and (zone_map is not None or mdp.state_xy is not None)
 
     ncols = 3 if K + 1 > 4 else K + 1
@@ -357,9 +368,9 @@ def result_figure(
         map_w, map_h = _map_panel_size(mdp, zone_map, trajs)
         post_h = max(post_h, map_h)
     trace_h = 5.2 if trace else 0.0
-    curve = doc.get("expertise_by_episode")
+    curve = None if result.changing is None else result.changing.by_episode
     curve_h = 3.0 if curve else 0.0
-    warnings = result_warnings(doc)
+    warnings = result_warnings(result)
     warn_h = 0.25 + 0.16 * min(len(warnings), 4) if warnings else 0.0
     fig = maps.new_figure((max(map_w + 3.0 * ncols, 8.5), post_h + trace_h + curve_h + warn_h + 0.6))
     heights = [h for h in (post_h, trace_h, curve_h, warn_h) if h > 0]
@@ -368,7 +379,7 @@ def result_figure(
     top = rows[0]
     bottom = rows[1] if trace else None
     if curve:
-        draw_learning_curve(rows[2 if trace else 1].subplots(1, 1), doc, truth.get("beta_by_episode"))
+        draw_learning_curve(rows[2 if trace else 1].subplots(1, 1), result, truth.get("beta_by_episode"))
     sf_warn = rows[-1] if warnings else None
     sf_post = _draw_map_panel(top, map_w, 3.0 * ncols, mdp, zone_map, trajs) if draw_map else top
     axes = sf_post.subplots(nrows, ncols, squeeze=False).ravel()
@@ -376,19 +387,18 @@ def result_figure(
         ax.axis("off")
     ax_beta, ax_th = axes[0], axes[1:K + 1]
     if method == "discrete":
-        subtitle = _draw_discrete(doc, ax_beta, ax_th, beta_true, theta_true)
+        subtitle = _draw_discrete(result, ax_beta, ax_th, beta_true, theta_true)
     elif method in SAMPLED:
-        subtitle = _draw_samples(doc, source, ax_beta, ax_th, beta_true, theta_true)
+        subtitle = _draw_samples(result, source, ax_beta, ax_th, beta_true, theta_true)
     else:  # map: a point, no posterior
-        subtitle = _draw_optimum(doc, ax_beta, ax_th)
-    if bottom is not None:
+        subtitle = _draw_optimum(result, ax_beta, ax_th)
+    if bottom is not None and post is not None:
         axs = bottom.subplots(3, 1, sharex=True, height_ratios=[1.3, 1.0, 0.8])
-        betas = doc["marginals"]["beta"]["values"]
-        draw_trace(axs, trace, beta_true=beta_true, betas=betas)
+        draw_trace(axs, trace, beta_true=beta_true, betas=post.marginals.beta_values)
 
     if beta_true is not None or theta_true is not None:
         subtitle += "; red = the truth (θ*, β*)"
-    fig.suptitle(_title(doc, source, subtitle), fontsize=10)
+    fig.suptitle(_title(result, source, subtitle), fontsize=10)
     if sf_warn is not None:
         _draw_warnings(sf_warn, warnings)
     return fig
@@ -424,15 +434,24 @@ def _beta_axis(ax: Axes, values: np.ndarray) -> None:
     ax.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:g}"))
 
 
-def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
+def draw_learning_curve(ax: Axes, result: Result | Mapping[str, Any], beta_true=None) -> Axes:
     """``--expertise changing``: β̂_e (posterior mean) with its 90% band against the episode (numbered
     from 0, as every command numbers them), the median as dots, and the stationary β̂ as a line; the
     true β_e in red when the result has it. The β axis is :func:`curve_limits`.
 
+    ``result`` is a :class:`~expertise_irl.result.Result` with its ``changing`` part, or a document
+    with ``expertise_by_episode`` and ``beta_hat`` (and ``changing``, ``trend``, as ``infer`` writes).
+
     gids: ``"curve-band"``, ``"curve-mean"``, ``"curve-median"``, ``"curve-stationary"``,
     ``"curve-truth"``.
     """
-    curve = doc["expertise_by_episode"]
+    if isinstance(result, Result):
+        changing, beta_hat = result.changing, result.beta_hat
+    else:
+        changing, beta_hat = ChangingExpertise.from_json(result), float(result["beta_hat"])
+    if changing is None or not changing.by_episode:
+        raise ArgumentError("the result has no learning curve (infer --expertise changing writes it)")
+    curve = changing.by_episode
     x = np.array([c["episode"] if is_number(c.get("episode")) else i for i, c in enumerate(curve)])
     get = {k: np.array([np.nan if c[k] is None else c[k] for c in curve], dtype=float)
            for k in ("mean", "median", "q05", "q95")}
@@ -442,24 +461,24 @@ def draw_learning_curve(ax: Axes, doc: dict[str, Any], beta_true=None) -> Axes:
     ax.plot(x, get["mean"], color="#1f4e8c", lw=1.8, marker="o", ms=3.5, label="β̂_e (mean)", gid="curve-mean")
     ax.plot(x, get["median"], ls="none", marker="_", ms=9, color="#c2255c", label="median",
             gid="curve-median")
-    ax.axhline(doc["beta_hat"], color="#495057", ls="--", lw=1.2,
-               label=f"one β for all episodes: β̂ = {doc['beta_hat']:.3g}", gid="curve-stationary")
-    shown = [*get.values(), [doc["beta_hat"]]]
-    if isinstance(beta_true, list) and len(beta_true) == len(curve):
+    ax.axhline(beta_hat, color="#495057", ls="--", lw=1.2,
+               label=f"one β for all episodes: β̂ = {beta_hat:.3g}", gid="curve-stationary")
+    shown = [*get.values(), [beta_hat]]
+    if isinstance(beta_true, list | tuple) and len(beta_true) == len(curve):
         ax.plot(x, beta_true, color="#d62728", lw=1.2, marker="x", ms=4, label="true β_e", gid="curve-truth")
         shown.append(beta_true)
     _beta_axis(ax, np.concatenate([np.asarray(v, dtype=float).ravel() for v in shown]))
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("episode (from 0, in the order given)", fontsize=8.5)
     ax.set_ylabel("β (log scale; low = expert)", fontsize=8.5)
-    ax.set_title(_curve_title(doc), fontsize=9)
+    ax.set_title(_curve_title(changing), fontsize=9)
     ax.legend(fontsize=7.5, loc="best", frameon=False)
     maps.tidy(ax)
     return ax
 
 
-def _curve_title(doc: dict[str, Any]) -> str:
-    ch, tr = doc.get("changing") or {}, doc.get("trend") or {}
+def _curve_title(changing: ChangingExpertise) -> str:
+    ch, tr = changing.evidence or {}, changing.trend or {}
     bf = ch.get("log_bayes_factor")
     title = "expertise by episode: " + (f"log Bayes factor {bf:.2f} for changing against one β, "
                                         f"P(changing) = {ch.get('p_changing', float('nan')):.3g}"
@@ -471,15 +490,15 @@ def _curve_title(doc: dict[str, Any]) -> str:
     return title
 
 
-def _title(doc: dict[str, Any], source: Path, subtitle: str) -> str:
+def _title(result: Result, source: Path, subtitle: str) -> str:
     """The figure's title: file, method, data, β̂ and its group; then ``subtitle``."""
-    data = doc.get("data") if isinstance(doc.get("data"), dict) else {}
+    data = result.data if isinstance(result.data, Mapping) else {}
     what = ""
     if is_number(data.get("episodes")) and is_number(data.get("actions")):
         n, m = int(data["episodes"]), int(data["actions"])
         what = f", {plural(n, 'episode')}, {plural(m, 'action')}"
-    return (f"{source.name}: {doc['method']}{what}; β̂ = {doc['beta_hat']:.3g} "
-            f"({doc.get('expertise_group', '?')} expertise)\n{subtitle}")
+    return (f"{source.name}: {result.method}{what}; β̂ = {result.beta_hat:.3g} "
+            f"({result.estimate.expertise_group or '?'} expertise)\n{subtitle}")
 
 
 def _draw_warnings(sf_warn, warnings: list[str]) -> None:
@@ -534,42 +553,46 @@ def _fit_legend(ax: Axes, handles: list, width: float) -> None:
         leg.remove()
 
 
-def _draw_discrete(doc: dict[str, Any], ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
+def _draw_discrete(result: Result, ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
     """Marginal posteriors of a discrete-set result; the subtitle that explains them."""
-    names = doc["feature_names"]
-    m = doc["marginals"]
-    betas, pb = m["beta"]["values"], m["beta"]["probabilities"]
+    names = result.feature_names
+    if result.posterior is None:
+        raise ArgumentError("a discrete result without its posterior (marginals)")
+    m = result.posterior.marginals
+    betas, pb = m.beta_values, m.beta_probabilities
     maps.draw_beta_marginal(ax_beta, betas, pb, beta_true=beta_true)
-    ax_beta.set_title(rf"$\beta$: marginal posterior, E = {doc['beta_hat']:.3g}", fontsize=8.5)
+    ax_beta.set_title(rf"$\beta$: marginal posterior, E = {result.beta_hat:.3g}", fontsize=8.5)
     ax_beta.set_ylabel("marginal prob.", fontsize=7.5)
     ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
-    tv, tp = m["theta"]["values"], m["theta"]["probabilities"]
+    tv, tp = m.theta_values, m.theta_probabilities
     for i, ax in enumerate(ax_th):
         v, p = theta_component_marginal(tv, tp, i)
-        draw_discrete_component(ax, v, p, names[i], mean=doc["theta_hat"][i],
+        draw_discrete_component(ax, v, p, names[i], mean=result.theta_hat[i],
                                 true=None if theta_true is None else theta_true[i])
     return (f"discrete set: {len(betas)} β × {len(tv)} θ; bars = marginal posterior "
             "probabilities; dashed = posterior mean")
 
 
-def _draw_samples(doc: dict[str, Any], source: Path, ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
+def _draw_samples(result: Result, source: Path, ax_beta: Axes, ax_th, beta_true, theta_true) -> str:
     """Histograms of a sampled result's draws (from the samples CSV beside ``source``); the subtitle."""
-    names = doc["feature_names"]
+    names = result.feature_names
     K = len(names)
-    chain, beta, theta = load_samples(doc, source)
-    ci = doc.get("credible_intervals") if isinstance(doc.get("credible_intervals"), dict) else {}
-    mp = doc.get("map") if isinstance(doc.get("map"), dict) else {}
+    chain, beta, theta = load_samples(result, source)
+    ci = result.estimate.credible_intervals
+    ci = ci if isinstance(ci, Mapping) else {}
+    mp = result.estimate.point
     b_int = ci.get("beta") if _valid_interval(ci.get("beta")) else None
-    draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=doc["beta_hat"],
-                 point=mp.get("beta") if is_number(mp.get("beta")) else None, true=beta_true,
+    draw_sampled(ax_beta, beta, r"$\beta$", interval=b_int, mean=result.beta_hat,
+                 point=mp.beta if mp is not None and is_number(mp.beta) else None, true=beta_true,
                  withheld="beta" in ci and ci["beta"] is None)
     ax_beta.set_xlabel(r"$\beta$ (low = expert)", fontsize=7.5)
-    t_ints = ci.get("theta") if isinstance(ci.get("theta"), list) and len(ci.get("theta")) == K else None
-    mp_t = mp.get("theta") if isinstance(mp.get("theta"), list) and len(mp.get("theta")) == K else None
+    t_ints = ci.get("theta") if isinstance(ci.get("theta"), list | tuple) and len(ci.get("theta")) == K \
+        else None
+    mp_t = mp.theta if mp is not None and len(mp.theta) == K else None
     for i, ax in enumerate(ax_th):
         draw_sampled(ax, theta[:, i], rf"$\theta$ {names[i]}",
                      interval=t_ints[i] if t_ints and _valid_interval(t_ints[i]) else None,
-                     mean=doc["theta_hat"][i], point=None if mp_t is None else mp_t[i],
+                     mean=result.theta_hat[i], point=None if mp_t is None else mp_t[i],
                      true=None if theta_true is None else theta_true[i],
                      withheld=t_ints is not None and t_ints[i] is None)
     n_chains = len(np.unique(chain))
@@ -578,22 +601,20 @@ def _draw_samples(doc: dict[str, Any], source: Path, ax_beta: Axes, ax_th, beta_
             "shaded = 90% credible interval; dashed = posterior mean; ▲ = best draw")
 
 
-def _draw_optimum(doc: dict[str, Any], ax_beta: Axes, ax_th) -> str:
+def _draw_optimum(result: Result, ax_beta: Axes, ax_th) -> str:
     """The point estimate of a MAP result; the subtitle that says it is no posterior."""
-    names = doc["feature_names"]
-    draw_point(ax_beta, doc["beta_hat"], r"$\hat\beta$", lo=0.005, hi=20, log=True)
+    names = result.feature_names
+    draw_point(ax_beta, result.beta_hat, r"$\hat\beta$", lo=0.005, hi=20, log=True)
     ax_beta.set_xlabel(r"$\beta$ (log scale; low = expert)", fontsize=7.5)
-    hi = max(1.0, max(doc["theta_hat"]) * 1.1)
+    hi = max(1.0, max(result.theta_hat) * 1.1)
     for i, ax in enumerate(ax_th):
-        draw_point(ax, doc["theta_hat"][i], rf"$\hat\theta$ {names[i]}", lo=-0.02, hi=hi)
+        draw_point(ax, result.theta_hat[i], rf"$\hat\theta$ {names[i]}", lo=-0.02, hi=hi)
     return "MAP optimum only: this method gives a point, not a posterior"
 
 
-def result_warnings(doc: dict[str, Any]) -> list[str]:
-    """The result's ``diagnostics.warnings`` (strings only; empty when there are none)."""
-    diag = doc.get("diagnostics")
-    warnings = diag.get("warnings") if isinstance(diag, dict) else None
-    return [w for w in warnings if isinstance(w, str)] if isinstance(warnings, list) else []
+def result_warnings(result: Result) -> list[str]:
+    """The result's ``diagnostics.warnings`` (empty when there are none)."""
+    return list(result.warnings)
 
 
 def _valid_interval(v) -> bool:
