@@ -9,3 +9,12 @@ matplotlib.use("Agg")
 # width, but one width keeps them identical from machine to machine); tests/planning/test_tuning.py
 # measures and caches it in a folder of its own.
 os.environ.setdefault("EXPERTISE_IRL_LANES", "8")
+
+# The quick tier's record of the modules its tests call (tests/quick_tier.py).
+from quick_tier import (
+    pytest_collection_finish,
+    pytest_collection_modifyitems,
+    pytest_runtest_protocol,
+)
+
+__all__ = ["pytest_collection_finish", "pytest_collection_modifyitems", "pytest_runtest_protocol"]

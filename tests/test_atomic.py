@@ -104,6 +104,7 @@ def test_many_episodes_get_a_size_estimate_and_are_written_in_batches(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.csv"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("sig", "code", "word"), [(signal.SIGTERM, 143, "terminated"),
                                                    (signal.SIGINT, 130, "interrupted")])
 def test_a_stopped_simulate_leaves_nothing_at_its_output(tmp_path, sig, code, word):

@@ -19,6 +19,9 @@ import pytest
 
 import expertise_irl
 
+# Every test reads the one site build (2–3 minutes with its executed tutorials).
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: tutorial page -> lines its executed cells print (HTML-escaped as in the page)

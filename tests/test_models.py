@@ -32,6 +32,7 @@ def crossroads():
     return load_bundled("crossroads").to_mdp()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", MODELS)
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_solve_matches_reference(model, seed):

@@ -83,6 +83,7 @@ def _run(script: str) -> None:
     assert done.returncode == 0, done.stderr[-3000:]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", list(CASES))
 def test_each_path_that_computes_switches_float64_on_itself(path):
     _run(PRELUDE + CASES[path])

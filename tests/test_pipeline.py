@@ -48,6 +48,7 @@ def readme(tmp_path, monkeypatch):
     return tmp_path
 
 
+@pytest.mark.slow
 def test_python_infer_is_the_command_lines(readme):
     ok(invoke("infer", "crossroads", "--demos", "demos.csv", "--method", "map", "--out", "map.json"))
     cli = json.loads((readme / "map.json").read_text())

@@ -38,6 +38,7 @@ def learner(tmp_path_factory):
     return d, betas, res
 
 
+@pytest.mark.slow
 def test_the_result_has_the_learning_curve_beside_the_stationary_estimate(learner):
     from scipy.stats import spearmanr
 
@@ -63,6 +64,7 @@ def test_the_result_has_the_learning_curve_beside_the_stationary_estimate(learne
     assert "changing expertise: log Bayes factor" in res.stdout
 
 
+@pytest.mark.slow
 def test_plot_draws_the_learning_curve(learner):
     from expertise_irl.plots.results import result_figure
 
@@ -75,6 +77,7 @@ def test_plot_draws_the_learning_curve(learner):
     assert (d / "curve.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_changing_expertise_is_refused_where_it_is_not_built(learner):
     d, _, _ = learner
     base = ("infer", "crossroads", "--demos", d / "demos.csv", "--out", d / "x.json")
@@ -103,6 +106,7 @@ def _two_task_manifest(d, mdp, people, rng) -> None:
     (d / "m.csv").write_text("\n".join(lines) + "\n")
 
 
+@pytest.mark.slow
 def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
     """Four learners (β falling 2 → 0.05 over 8 episodes, 4 per task, two tasks on crossroads) and
     one steady person: each participant's curve runs over their tasks in manifest order and is the
@@ -147,6 +151,7 @@ def test_a_study_with_changing_expertise_tests_whether_people_improve(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow
 def test_a_map_study_fits_each_participants_curve_over_their_tasks(tmp_path):
     """``study --method map --expertise changing``: each participant's learning curve runs over
     their manifest rows in order (two tasks, three episodes each), is the library's MAP curve on those
@@ -207,6 +212,7 @@ def test_the_filtered_beta_after_each_action_is_the_model_on_the_data_so_far():
         np.testing.assert_allclose(live[t], want, rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.slow
 def test_per_action_results_carry_the_current_episodes_beta(learner):
     d, _, _ = learner
     ok(invoke("infer", "crossroads", "--demos", d / "demos.csv", "--model", "maxent-relative",
@@ -223,6 +229,7 @@ def test_per_action_results_carry_the_current_episodes_beta(learner):
     assert live[0]["beta_mean"] > 5 * live[-1]["beta_mean"]
 
 
+@pytest.mark.slow
 def test_map_gives_the_learning_curve_beside_the_one_beta_estimate(learner):
     from expertise_irl.plots.results import result_figure
 

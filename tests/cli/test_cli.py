@@ -166,6 +166,7 @@ def inferred(work, corridor_csv):
 
 
 # ----------------------------------------------------------------------------- demo
+@pytest.mark.slow
 def test_demo_writes_png_and_result(demo_a):
     out_dir, _ = demo_a
     names = sorted(p.name for p in out_dir.iterdir())
@@ -210,6 +211,7 @@ def test_demo_table_shows_truth_inference_and_metrics(demo_a):
     assert str(out_dir / "result-corridor-seed0.json") in stdout
 
 
+@pytest.mark.slow
 def test_demo_same_seed_same_result(work, demo_a):
     out_a, _ = demo_a
     out_b, out_c = work / "demo-b", work / "demo-c"
@@ -255,6 +257,7 @@ def test_demo_checks_every_output_before_writing(demo_a, tmp_path):
     assert snapshot(out_dir / "result-corridor-seed0.json") == before
 
 
+@pytest.mark.slow
 def test_demo_default_generated_map_end_to_end(tmp_path):
     """The README quick start: ``expertise-irl demo`` on a random map, as a real process."""
     proc = run_cli("demo", "--seed", 2, "--out", "demo-out", cwd=tmp_path)
@@ -342,6 +345,7 @@ def test_simulate_npz_formats(corridor_csv, corridor_npz, corridor_npz_no_xy, tm
 
 
 # ----------------------------------------------------------------------------- infer
+@pytest.mark.slow
 def test_infer_result_document(inferred):
     doc, _ = inferred
     for key in ("beta_hat", "theta_hat", "hypotheses", "settings", "version"):
@@ -360,6 +364,7 @@ def test_infer_result_document(inferred):
     assert doc["data"]["episodes"] == 20
 
 
+@pytest.mark.slow
 def test_infer_per_action_same_posterior_plus_trace(inferred, corridor_csv):
     plain, traced = inferred
     lp_plain = np.array([h["log_posterior"] for h in plain["hypotheses"]], dtype=float)
@@ -394,6 +399,7 @@ def test_infer_per_action_same_posterior_plus_trace(inferred, corridor_csv):
         zip(pairs.episode.tolist(), pairs.step.tolist(), strict=True))
 
 
+@pytest.mark.slow
 def test_infer_sample_thetas(corridor_csv, tmp_path):
     def sample(seed: int) -> dict:
         out = tmp_path / f"sampled-{seed}-{len(list(tmp_path.iterdir()))}.json"
@@ -413,6 +419,7 @@ def test_infer_sample_thetas(corridor_csv, tmp_path):
     assert rows_as_set([h["theta"] for h in sample(4)["hypotheses"]]) != sampled
 
 
+@pytest.mark.slow
 def test_infer_state_csv_on_generic_mdp(corridor_csv, corridor_npz_no_xy, tmp_path):
     """A task with no grid: simulate writes state CSV, infer --mdp reads it; same answer as the map."""
     demos = tmp_path / "state.csv"
@@ -427,6 +434,7 @@ def test_infer_state_csv_on_generic_mdp(corridor_csv, corridor_npz_no_xy, tmp_pa
                                [h["log_posterior"] for h in b["hypotheses"]], rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_simulate_then_infer_recovers_truth(tmp_path):
     """β* = 0.09 on crossroads (no start cell, so episodes start all over the map). With the true
     θ* in the --thetas 0,0.5,1 grid and β* in paper-sim, 150 episodes put the MAP on the truth:
@@ -449,6 +457,7 @@ def test_simulate_then_infer_recovers_truth(tmp_path):
     assert doc["expertise_group"] == "high"
 
 
+@pytest.mark.slow
 def test_pipeline_end_to_end(tmp_path):
     """export-mdp -> simulate --mdp -> infer --mdp through the installed console script."""
     assert run_cli("export-mdp", "corridor", "--out", "task.npz", cwd=tmp_path).returncode == 0
@@ -598,6 +607,7 @@ def test_map_and_mdp_both_or_neither(command, corridor_npz, corridor_csv, tmp_pa
     assert not out.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["export-mdp", "simulate", "infer"])
 def test_existing_output_is_untouched_without_force(command, corridor_csv, tmp_path):
     out = tmp_path / "existing.out"
@@ -650,6 +660,7 @@ E2E_BAD = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(E2E_BAD))
 def test_bad_input_end_to_end_has_no_traceback(case, tmp_path):
     name, text, args, fragments = E2E_BAD[case]
@@ -746,6 +757,7 @@ def test_infer_records_inputs_exactly(inferred, corridor_csv):
 
 
 # ----------------------------------------------------------------------------- continuous methods
+@pytest.mark.slow
 @pytest.mark.parametrize("method,extra", [
     ("map", ["--starts", "2"]),
     ("nuts", ["--chains", "2", "--warmup", "60", "--samples", "60"]),
@@ -780,6 +792,7 @@ def test_infer_continuous_methods(method, extra, corridor_csv, tmp_path):
         assert 0 < diag["acceptance_rate"] < 1
 
 
+@pytest.mark.slow
 def test_infer_method_is_seeded(corridor_csv, tmp_path):
     docs = []
     for name in ("a", "b"):

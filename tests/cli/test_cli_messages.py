@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from cli_helpers import invoke, ok
 
 
@@ -16,12 +17,14 @@ def _cli(*args, cwd) -> subprocess.CompletedProcess:
     return subprocess.run([str(exe), *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_a_missing_file_is_named_in_the_package_s_words(tmp_path):
     run = _cli("plot", "missing.json", "--out", "x.png", cwd=tmp_path)
     assert run.returncode == 2
     assert run.stderr == "error: missing.json: no such file\n"
 
 
+@pytest.mark.slow
 def test_an_error_before_any_work_leaves_no_empty_line_above_it(tmp_path):
     """A sweep whose output cannot be made fails before its progress bar has a task: the error is the
     whole of stderr (a progress display started on entry used to print an empty line first)."""

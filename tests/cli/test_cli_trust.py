@@ -34,6 +34,7 @@ def strict_json(path: Path) -> dict:
 
 
 # ----------------------------------------------------------------------------- no crash loses a result
+@pytest.mark.slow
 @pytest.mark.parametrize("method,extra,unavailable", [
     ("nuts", ["--chains", "1", "--warmup", "1", "--samples", "1"], {"r_hat", "ess_bulk"}),
     ("birl", ["--iterations", "1"], {"r_hat", "ess_bulk"}),
@@ -60,6 +61,7 @@ def test_smallest_runs_write_their_result(method, extra, unavailable, one_episod
         assert any(w.startswith("convergence not checked") for w in diag["warnings"])
 
 
+@pytest.mark.slow
 def test_nuts_one_chain_is_not_reported_as_converged(one_episode, tmp_path):
     out = tmp_path / "nuts.json"
     ok(invoke("infer", "corridor", "--demos", one_episode, "--method", "nuts", "--chains", "1",
@@ -176,6 +178,7 @@ def test_notes_go_to_stderr(one_episode, tmp_path):
     assert "note:" not in result.stdout
 
 
+@pytest.mark.slow
 def test_demo_on_a_map_does_not_collide_with_the_random_map(tmp_path):
     ok(invoke("demo", "--seed", 0, "--episodes", 2, "--k", 2, "--out", tmp_path))
     ok(invoke("demo", "--map", "corridor", "--seed", 0, "--episodes", 2, "--k", 2, "--out", tmp_path))

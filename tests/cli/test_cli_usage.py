@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 
 import numpy as np
 import pandas as pd
@@ -11,6 +12,7 @@ import pytest
 import typer
 from cli_helpers import assert_input_error, invoke
 
+from expertise_irl import __version__, cli
 from expertise_irl.cli import app
 
 
@@ -86,3 +88,12 @@ def test_fig7_ticks_whole_numbers_of_episodes():
         lo, hi = ax.get_xlim()
         ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
         assert ticks and all(float(t).is_integer() for t in ticks), ticks
+
+
+def test_the_console_script_runs_the_app(monkeypatch, capsys):
+    """``expertise-irl`` is ``cli.main`` (pyproject.toml's script): the app the tests above drive."""
+    monkeypatch.setattr(sys, "argv", ["expertise-irl", "--version"])
+    with pytest.raises(SystemExit) as stop:
+        cli.main()
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"expertise-irl {__version__}"

@@ -19,6 +19,7 @@ def sweep(tmp_path_factory):
     return out, result
 
 
+@pytest.mark.slow
 def test_run_reports_and_status_counts(sweep):
     out, result = sweep
     assert "4 task(s) run, 0 already done or skipped, 0 failed, 168 rows" in result.output
@@ -28,6 +29,7 @@ def test_run_reports_and_status_counts(sweep):
     assert "rows: 168" in status.output and "time spent:" in status.output
 
 
+@pytest.mark.slow
 def test_rerun_skips_finished_tasks(sweep):
     out, _ = sweep
     again = invoke("experiment", "run", "conditions", "--out", str(out), "--workers", "1")
@@ -35,6 +37,7 @@ def test_rerun_skips_finished_tasks(sweep):
     assert "0 task(s) run, 4 already done" in again.output
 
 
+@pytest.mark.slow
 def test_other_seed_on_same_dir_is_one_line_error(sweep):
     out, _ = sweep
     one_line_error(invoke("experiment", "run", "conditions", "--out", str(out), "--seed", "5"),
@@ -46,6 +49,7 @@ def test_other_seed_on_same_dir_is_one_line_error(sweep):
                    "holds study 'conditions', not 'cardinality'; refusing to mix")
 
 
+@pytest.mark.slow
 def test_status_lists_failures_and_time_left(tmp_path, monkeypatch):
     from expertise_irl.experiments.engine import FAULTS_ENV
 
@@ -151,6 +155,7 @@ def test_list_does_not_load_jax():
     assert "JAX False" in proc.stdout, proc.stdout
 
 
+@pytest.mark.slow
 def test_config_file_replaces_fields_and_is_recorded(tmp_path):
     import json
     import tomllib
@@ -203,6 +208,7 @@ def test_missing_config_file_is_one_line_error(tmp_path):
                           tmp_path / "none.toml"), "none.toml", "no such file")
 
 
+@pytest.mark.slow
 def test_config_table_of_another_study_and_changed_config_are_named(tmp_path):
     cfg = tmp_path / "c.toml"
     cfg.write_text("[cardinality]\nruns = 2\n")
@@ -223,6 +229,7 @@ def test_config_table_of_another_study_and_changed_config_are_named(tmp_path):
                    "another config", "ks = [3] there, [4] here", "refusing to mix")
 
 
+@pytest.mark.slow
 def test_run_record_has_the_elapsed_time(sweep):
     import json
 

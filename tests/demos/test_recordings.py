@@ -304,6 +304,7 @@ def test_the_figure_puts_samples_where_they_were_recorded_and_cells_at_their_cen
 
 
 # ------------------------------------------------------------- command end to end
+@pytest.mark.slow
 def test_discretise_writes_the_heading_csv_and_a_png_and_reports_the_counts(tmp_path, plan_file):
     rec = write_rec(tmp_path / "rec.csv", [
         (0, 0.0, 0, 0), (0, 0.5, 0, 0), (0, 1.0, 1, 1),  # diagonal: horizontal first

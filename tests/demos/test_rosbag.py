@@ -151,6 +151,7 @@ def same(a, b) -> None:
 
 
 # ----------------------------------------------------------------------- the same recording
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix", [".bag", ".db3", ".mcap"])
 @pytest.mark.parametrize("msgtype", [ODOM, POSE, POSE_COV, TF])
 def test_every_format_and_message_type_gives_the_csv_samples_and_demonstrations(study, tmp_path, suffix,
@@ -184,6 +185,7 @@ def test_discretise_reads_a_ros1_bag_of_the_bundled_example_as_it_reads_the_csv(
     assert (tmp_path / "bag.png").is_file()
 
 
+@pytest.mark.slow
 def test_simulate_recordings_writes_a_bag_of_the_csvs_samples(study, tmp_path):
     d = study[0]
     sim = ("simulate-recordings", d / "plan.txt", "--theta", "0.5,0.2,0.3", "--beta", "0.3",
@@ -346,6 +348,7 @@ def manifest_rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.slow
 def test_a_study_manifest_takes_bags_with_their_options_in_bag_columns(study, tmp_path):
     d, _, eps = study
     for name in ("plan.txt", "plan.toml", "rec.csv"):

@@ -37,6 +37,7 @@ def smoke(sweep_dir) -> pd.DataFrame:
     return load(sweep_dir)
 
 
+@pytest.mark.slow
 def test_rows_hold_the_full_set_only_for_every_k_and_truth(smoke):
     cfg = SCALES["smoke"]
     assert set(smoke["condition"]) == {"full"}

@@ -10,6 +10,7 @@ from report_frames import conditions_rows, write_sweep
 from expertise_irl.experiments.report import build_report
 from expertise_irl.experiments.report import claims as C
 from expertise_irl.experiments.report import conditions_claims as CC
+from expertise_irl.experiments.report.regret_scale import random_theta_section
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +48,7 @@ def test_vi_e_group_must_beat_one_episode(rows):
     assert got.verdict == C.DIFFERS and got.why.startswith("inconclusive: ") and got.p == pytest.approx(0.5)
 
 
+@pytest.mark.slow
 def test_fig3_full_improves_and_fixed_theta_does_not(rows):
     got = _by_id(rows)
     assert got["VI-B-fig3-full"].verdict == C.REPRODUCED
@@ -124,6 +126,22 @@ def test_margin_claim_flips(rows):
     assert _by_id(jump)["VI-E-cosine-15"].verdict == C.NOT_REPRODUCED
 
 
+def test_random_theta_section_puts_the_full_sets_regret_beside_a_random_thetas():
+    rows = conditions_rows(environments=2, runs=1, ks=(5,))
+    n = 20  # the report reads the rows at the study's episodes
+    assert random_theta_section(rows, n) is None  # rows without the column
+    rows = rows.assign(random_theta_regret=rows["beta_true"].map(lambda b: 0.5 if b < 0.5 else 0.01))
+    section = random_theta_section(rows, n)
+    data = section.table.data.set_index(["truth", "group_true"])
+    assert data.loc[("in_set", "high"), "random_theta_regret_mean"] == pytest.approx(0.5)
+    assert data.loc[("in_set", "low"), "random_theta_regret_mean"] == pytest.approx(0.01)
+    full = rows[(rows["condition"] == "full") & (rows["episodes"] == n) & (rows["truth"] == "in_set")
+                & (rows["group_true"] == "high")]["policy_regret"].mean()
+    assert data.loc[("in_set", "high"), "full_over_random"] == pytest.approx(full / 0.5)
+    assert "in-set people a mean regret of" in section.text
+
+
+@pytest.mark.slow
 def test_random_theta_regret_section_only_where_the_rows_carry_it(tmp_path):
     rows = conditions_rows(environments=2, runs=1, ks=(5,))
     cfg = {"episodes": 20, "low_episodes": 40, "max_steps": 500}

@@ -63,6 +63,7 @@ def test_table_4_cells(rows):
     assert _by_id(rising)["T4-episodes-regret"].verdict == C.NOT_REPRODUCED
 
 
+@pytest.mark.slow
 def test_vii_b_table1_reading(rows):
     disc = rows["method"] == "discrete"
     linked = rows.copy()
@@ -87,6 +88,7 @@ def test_vii_b_and_vii_d_ratios_are_clustered_with_groups(rows):
     assert b.median_ratio == pytest.approx(disc.median() / box.median())
 
 
+@pytest.mark.slow
 def test_identifiability_gap_only_where_the_rows_carry_it(tmp_path):
     rows = optimisation_rows(instances=3)
     md = build_report(write_sweep(tmp_path / "without", "optimisation", rows, {"max_steps": 500})).read_text()

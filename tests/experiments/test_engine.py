@@ -52,6 +52,7 @@ def copy_sweep(src: Path, dst: Path) -> Path:
     return dst
 
 
+@pytest.mark.slow
 def test_reference_is_complete(reference):
     out, df = reference
     counts = STUDY.counts(SMOKE)
@@ -64,11 +65,13 @@ def test_reference_is_complete(reference):
     assert (per.min() == 1).all() and (per.max() == per.count()).all()
 
 
+@pytest.mark.slow
 def test_one_and_two_workers_give_identical_rows(reference, tmp_path):
     run(STUDY, tmp_path / "two", scale="smoke", seed=0, workers=2)
     assert_same_rows(load(tmp_path / "two"), reference[1])
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_identical_rows(reference, tmp_path, monkeypatch):
     distributed = pytest.importorskip("distributed")
     # One worker process dies in the middle of a task; Dask runs the task again elsewhere.
@@ -91,6 +94,7 @@ def _cli(args: list[str], env_extra: dict[str, str] | None = None) -> subprocess
                           timeout=300)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("fault", "shards_left"),
     [("kill-at-start", 0), ("kill-after:2", 2), ("kill-in-write:1", 1)],
@@ -143,6 +147,7 @@ def test_directory_of_something_else_is_refused(tmp_path):
         run(STUDY, tmp_path / "file", scale="smoke", workers=1)
 
 
+@pytest.mark.slow
 def test_failing_task_is_recorded_and_retried(reference, tmp_path, monkeypatch):
     out = copy_sweep(reference[0], tmp_path / "copy")
     key = STUDY.tasks(SMOKE)[1].key
@@ -166,6 +171,7 @@ def test_failing_task_is_recorded_and_retried(reference, tmp_path, monkeypatch):
     assert_same_rows(load(out), reference[1])
 
 
+@pytest.mark.slow
 def test_worker_that_dies_is_rerun(reference, tmp_path, monkeypatch):
     key = STUDY.tasks(SMOKE)[0].key
     marker = tmp_path / "died-once"
@@ -191,6 +197,7 @@ def _task_rows(cfg, seed: int, e: int, r: int, k: int) -> pd.DataFrame:
     return table.to_pandas()
 
 
+@pytest.mark.slow
 def test_person_rows_do_not_depend_on_grouping_or_study(reference):
     df = reference[1]
     e, r, k = 1, 0, 5

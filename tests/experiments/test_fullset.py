@@ -31,6 +31,7 @@ def smoke(sweep_dir) -> pd.DataFrame:
     return load(sweep_dir)
 
 
+@pytest.mark.slow
 def test_counts_and_sets(smoke):
     assert len(smoke) == STUDY.counts(SMOKE)["rows"]
     full = smoke[smoke.set == "full"]
@@ -45,6 +46,7 @@ def test_counts_and_sets(smoke):
     assert smoke[smoke.truth == "out_of_set"]["truth_probability"].isna().all()
 
 
+@pytest.mark.slow
 def test_own_set_rows_equal_the_source_studies(smoke):
     c = cond.SCALES["smoke"]
     theirs = pd.concat([pd.DataFrame(cond.run_task(c, 0, t.params)[0]) for t in cond.tasks(c)])
@@ -65,6 +67,7 @@ def test_own_set_rows_equal_the_source_studies(smoke):
     np.testing.assert_allclose(mine["policy_regret"], d["policy_regret"], atol=1e-9)
 
 
+@pytest.mark.slow
 def test_full_set_posterior_differs_and_contains_the_own_set(smoke):
     """The full set is another posterior (more hypotheses), on exactly the same episodes."""
     a = smoke[smoke.set == "theta_k"].sort_values(["source", *KEY, "instance"]).reset_index(drop=True)
@@ -73,6 +76,7 @@ def test_full_set_posterior_differs_and_contains_the_own_set(smoke):
     assert not np.allclose(a["beta_hat"], b["beta_hat"])
 
 
+@pytest.mark.slow
 def test_report_builds_from_the_smoke_sweep(sweep_dir):
     from expertise_irl.experiments.report import build_report
 

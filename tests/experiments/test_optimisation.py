@@ -44,6 +44,7 @@ def smoke(sweep_dir) -> pd.DataFrame:
     return load(sweep_dir)
 
 
+@pytest.mark.slow
 def test_every_method_at_every_count_and_nuts_on_its_subset(smoke):
     assert len(smoke) == STUDY.counts(SMOKE)["rows"]
     for i in range(SMOKE.instances):
@@ -61,6 +62,7 @@ def test_every_method_at_every_count_and_nuts_on_its_subset(smoke):
     assert smoke.loc[~smoke.method.isin(["nuts"]), "divergences"].isna().all()
 
 
+@pytest.mark.slow
 def test_truths_are_out_of_the_set_and_beta_in_range(smoke):
     for i in range(SMOKE.instances):
         inst = instance(SMOKE, 0, 0, i)
@@ -78,6 +80,7 @@ def _row(df, i, method, n):
     return r.iloc[0]
 
 
+@pytest.mark.slow
 def test_rows_equal_direct_calls_with_the_papers_prior(smoke):
     """Algorithm 1 (box, as printed), MAP and the set, called directly on the same episodes."""
     from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet
@@ -122,6 +125,7 @@ def test_bad_configs_are_refused():
         OptimisationConfig(prior="flat")
 
 
+@pytest.mark.slow
 def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
     """Figs. 8-9, Table IV, the wall times and the Sec. VII claims come from these rows alone."""
     from expertise_irl.experiments.report import build_report
@@ -140,6 +144,7 @@ def test_report_builds_from_the_smoke_sweep(sweep_dir, smoke):
     assert "5.005" in md  # the prior is stated
 
 
+@pytest.mark.slow
 def test_the_budget_ablation_adds_a_method_per_budget_and_a_verdict_column_each(tmp_path):
     """``birl_budgets``: `birl_box@40` (2 chains × 40 iterations) and `birl_box@rhat` (2 chains in
     blocks of 1,000 until R-hat < 1.01, at most 1,000 here); their rows carry the budget and chains,
@@ -171,6 +176,7 @@ def test_bad_budgets_are_refused():
         OptimisationConfig(birl_budgets=("rhat",), birl_chains=1)
 
 
+@pytest.mark.slow
 def test_the_finishing_protocol_makes_sec_vii_people_finish():
     """docs/reproduction/finishing.toml: with R_goal = 175 outside θ·φ, people across the study's β*
     range reach the goal within max_steps: none capped at β ≤ 2, at most 10% of episodes at β = 5

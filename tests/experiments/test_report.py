@@ -52,6 +52,7 @@ def _by_id(claims):
 
 
 # ----------------------------------------------------------------------------- the command
+@pytest.mark.slow
 def test_report_from_the_smoke_sweep_has_every_file(smoke):
     sweep, result = smoke
     out = sweep / "report"
@@ -103,6 +104,7 @@ def test_report_from_the_smoke_sweep_has_every_file(smoke):
             "group") in md and "only within a group" not in md
 
 
+@pytest.mark.slow
 def test_report_md_claims_match_claims_csv(smoke):
     sweep, _ = smoke
     md = (sweep / "report" / "report.md").read_text()
@@ -110,6 +112,7 @@ def test_report_md_claims_match_claims_csv(smoke):
         assert f"| {row.verdict} | {row.why.replace('|', chr(92) + '|')} |" in md
 
 
+@pytest.mark.slow
 def test_a_previous_report_is_replaced_and_user_files_kept(smoke, tmp_path):
     sweep, _ = smoke
     out = tmp_path / "rep"
@@ -122,6 +125,7 @@ def test_a_previous_report_is_replaced_and_user_files_kept(smoke, tmp_path):
     assert "notes.txt" not in (out / MARKER).read_text()
 
 
+@pytest.mark.slow
 def test_rebuilding_a_report_leaves_its_files_as_they_were(smoke, tmp_path):
     """The marker holds no time: a report rebuilt from the same rows is byte for byte the same."""
     sweep, _ = smoke
@@ -134,6 +138,7 @@ def test_rebuilding_a_report_leaves_its_files_as_they_were(smoke, tmp_path):
     assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == first
 
 
+@pytest.mark.slow
 def test_foreign_non_empty_out_is_refused(smoke, tmp_path):
     sweep, _ = smoke
     out = tmp_path / "mine"
@@ -163,6 +168,7 @@ def test_not_a_sweep_unknown_study_and_no_rows_are_one_line_errors(tmp_path):
     assert_input_error(invoke("experiment", "report", broken), "rows lack column 'wall_time_s'")
 
 
+@pytest.mark.slow
 def test_unfinished_sweep_reports_with_a_warning(smoke, tmp_path):
     sweep, _ = smoke
     part = tmp_path / "part"
@@ -191,6 +197,7 @@ def _set_fixed(rows, n, condition, metric, delta):
     return rows
 
 
+@pytest.mark.slow
 def test_vi_b_verdict_follows_the_rows(smoke):
     rows = read_sweep(smoke[0]).rows
     n = 3
@@ -203,6 +210,7 @@ def test_vi_b_verdict_follows_the_rows(smoke):
     assert _by_id(cond_report.claims(mixed, n))["VI-B"].verdict == C.NOT_REPRODUCED  # all ties
 
 
+@pytest.mark.slow
 def test_vi_c_cosine_verdict_flips_with_the_rows(smoke):
     rows = read_sweep(smoke[0]).rows
     lower = _set_fixed(rows, 3, "fixed_beta", "cosine_similarity", -0.1)
@@ -211,6 +219,7 @@ def test_vi_c_cosine_verdict_flips_with_the_rows(smoke):
     assert _by_id(cond_report.claims(higher, 3))["VI-C-cosine"].verdict == C.NOT_REPRODUCED
 
 
+@pytest.mark.slow
 def test_vi_d_ratio_verdict_at_the_band_edges(smoke):
     rows = read_sweep(smoke[0]).rows.copy()
     at = (rows["k"] == rows["k"].max()) & (rows["episodes"] == 3) & (rows["condition"] == "full")
@@ -302,6 +311,7 @@ def test_pairing_matters_where_people_differ_a_lot():
     assert unpaired.verdict == C.DIFFERS and unpaired.ci_low < 1 < unpaired.ci_high
 
 
+@pytest.mark.slow
 def test_vi_c_regret_uses_the_log_band(smoke):
     rows = read_sweep(smoke[0]).rows.copy()
     at = (rows["truth"] == "in_set") & (rows["episodes"] == 3)
@@ -313,6 +323,7 @@ def test_vi_c_regret_uses_the_log_band(smoke):
         assert got.rule == "magnitude"
 
 
+@pytest.mark.slow
 def test_vi_e_share_and_threshold_follow_the_rows(smoke):
     rows = read_sweep(smoke[0]).rows.copy()
     full_in = (rows["truth"] == "in_set") & (rows["condition"] == "full") & (rows["episodes"] == 3)
@@ -395,6 +406,7 @@ def test_format_rho():
     assert format_rho(-0.004, 0.5) == "0.00"
 
 
+@pytest.mark.slow
 def test_table_1_says_when_it_needs_study_version_2(smoke):
     sweep = read_sweep(smoke[0])
     v1 = dataclasses.replace(sweep, rows=sweep.rows.drop(columns=list(cond_report.V2), errors="ignore"))
@@ -415,6 +427,7 @@ def _pairs(rows, a: str, b: str, column: str):
     return x.loc[common], y.loc[common]
 
 
+@pytest.mark.slow
 def test_optimisation_report_from_contract_rows(tmp_path):
     rows = optimisation_rows()
     sweep = write_sweep(tmp_path / "opt", "optimisation", rows, {"episode_counts": [10, 20, 30, 40],
@@ -477,9 +490,10 @@ def test_optimisation_report_from_contract_rows(tmp_path):
 @pytest.mark.parametrize("walls, expect", [
     ([12.5, 200.0], "212.5 s (3.5 min): the sum of the elapsed times of the 2 invocations of "
                     "`experiment run`"),
-    ([12.5, None, "x"], "12.5 s: the sum of the elapsed times of the 1 of 3 invocations of `experiment run` "
-                        "that record it (2 without `wall_time_s`)"),
-    ([7200.0], "7200.0 s (2.0 h): the sum of the elapsed times of the 1 invocation of `experiment run`")])
+    pytest.param([12.5, None, "x"], "12.5 s: the sum of the elapsed times of the 1 of 3 invocations of "
+                 "`experiment run` that record it (2 without `wall_time_s`)", marks=pytest.mark.slow),
+    pytest.param([7200.0], "7200.0 s (2.0 h): the sum of the elapsed times of the 1 invocation of "
+                 "`experiment run`", marks=pytest.mark.slow)])
 def test_header_gives_the_runs_elapsed_time_where_recorded(tmp_path, walls, expect):
     runs = [run_record(**({"wall_time_s": w} if w is not None else {})) for w in walls]
     sweep = write_sweep(tmp_path / "opt", "optimisation", optimisation_rows(instances=2), {"max_steps": 500},
@@ -490,6 +504,7 @@ def test_header_gives_the_runs_elapsed_time_where_recorded(tmp_path, walls, expe
             "`timings/`); tasks on parallel workers overlap, so this is not the sweep's elapsed time |") in md
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("run, shared", [
     (run_record(workers=2), "2 local workers"),
     (run_record(workers=None, engine="dask", scheduler="tcp://10.0.0.1:8786"), "tcp://10.0.0.1:8786"),
@@ -531,7 +546,7 @@ def test_cardinality_report_from_contract_rows(tmp_path):
         C.REPRODUCED if in_regret.pvalue < 0.05 else C.DIFFERS)
 
 
-@pytest.mark.parametrize("truth_column", [True, False])
+@pytest.mark.parametrize("truth_column", [pytest.param(True, marks=pytest.mark.slow), False])
 def test_fullset_report_from_contract_rows(tmp_path, truth_column):
     rows = fullset_rows(truth_column=truth_column)
     timings = [{"set_solve_time_s": 12.0, "set_solves": 1, "people": 0}, {"set_solve_time_s": 13.0,
@@ -611,6 +626,7 @@ def test_means_tables_clip_their_cis_to_the_metric_range():
     assert "clipped to the metric's range" in t.caption
 
 
+@pytest.mark.slow
 def test_capped_shares_and_the_effect_text_speak_of_the_same_people(smoke):
     sweep = read_sweep(smoke[0])
     rows = sweep.rows

@@ -21,6 +21,7 @@ def test_every_committed_sweep_is_checked():
             "cardinality-paper-fixed"} <= set(RUNS)
 
 
+@pytest.mark.slow
 def test_the_readme_matrix_is_what_the_claims_say():
     """The claim × protocol table of docs/reproduction/README.md is the one the committed claims build."""
     from expertise_irl.experiments.report.reproduction import END, START, matrix
@@ -33,6 +34,7 @@ def test_the_readme_matrix_is_what_the_claims_say():
         "the count line at the top of the page"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("run", RUNS)
 def test_committed_report_rebuilds_from_committed_rows(run, tmp_path):
     """Claims (verdicts and numbers) and tables rebuilt from the Parquet equal the committed ones:

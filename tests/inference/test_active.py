@@ -62,6 +62,7 @@ def exact_gain(belief: DiscreteBelief, mdp, start: int, steps: int) -> float:
     return total
 
 
+@pytest.mark.slow
 def test_monte_carlo_gain_matches_exact_enumeration(world):
     mdp, _, est, idx = world
     on = OnlineEstimator.from_belief(mdp, est.belief())

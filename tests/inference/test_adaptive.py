@@ -59,6 +59,7 @@ def test_start_set_is_small_and_covers_both_ends():
     assert len(start_set(3).thetas) <= adaptive.START_THETAS_MAX
 
 
+@pytest.mark.slow
 def test_the_posterior_is_exact_over_the_final_set(mdp, person):
     """The refined set's policies, stacked in its order, equal a fresh solve of that set, so the
     posterior over it is Eq. 13 with the recorded prior weights."""
@@ -159,6 +160,7 @@ def test_changing_expertise_keeps_the_paper_grid():
         DiscreteOptions(expertise="changing", refine=True)
 
 
+@pytest.mark.slow
 def test_a_coarse_named_set_is_told_from_missing_features(tmp_path):
     """The README's example: β* = 0.5 lies between 0.1 and 1 of the named set, whose posterior fails
     the predictive checks; refined, the same checks pass, so the verdict is a coarse set and there is
@@ -209,6 +211,7 @@ S.........
 """
 
 
+@pytest.mark.slow
 def test_several_tasks_share_one_hypothesis_and_sum_their_log_likelihoods(mdp, person):
     """Over two maps the refined set's log-likelihood of a hypothesis is the sum of a fresh solve's on
     each map, each map's policies are kept in task order, and the record's last estimate is the

@@ -503,6 +503,7 @@ def test_recovery_seed0(crossroads):
             assert margin > 5.0, (group, margin)
 
 
+@pytest.mark.slow
 def test_recovery_rates_over_seeds(crossroads):
     """Seeds 1..20 per group. Over seeds 0..199 (measured with this protocol) the truth was
     the MAP in 89% of high-, 98% of medium- and 33% of low-expertise runs; the median

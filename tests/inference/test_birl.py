@@ -205,6 +205,7 @@ def _log_uniform(theta, beta):
     return -math.log(beta)  # the default prior, p(β) ∝ 1/β (every lattice β is inside its range)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("variant, moves, prior", [
     ("box", "both", paper_log_prior),  # Algorithm 1 as printed, the paper's prior
     ("box", "either", None),  # the library's default prior
@@ -241,6 +242,7 @@ def test_chain_matches_exact_posterior(tiny, variant, moves, prior):
 
 
 # ------------------------------------------------------------------------------ recovery
+@pytest.mark.slow
 def test_simplex_recovers_truth_on_corridor():
     """40 simulated episodes from an off-grid (θ*, β*); the simplex variant's estimate.
 

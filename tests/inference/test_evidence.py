@@ -63,6 +63,7 @@ def test_heldout_is_the_posterior_predictive_per_action(small, hyp):
     assert cmp.n_test_actions == len(test) and cmp.fits[0].log_bayes_factor == 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("truth_model", ["maxent", "maxent-relative"])
 def test_the_generating_model_has_the_most_evidence(truth_model):
     """40 episodes on crossroads from a truth inside the set: the generating model wins by a wide
@@ -80,6 +81,7 @@ def test_the_generating_model_has_the_most_evidence(truth_model):
     assert all(f.log_bayes_factor < -5 for f in others), [(f.model, f.log_bayes_factor) for f in others]
 
 
+@pytest.mark.slow
 def test_compare_models_command(tmp_path):
     demos, out = tmp_path / "d.csv", tmp_path / "cmp.json"
     ok(invoke("simulate", "corridor", "--theta", "0.5,0.5,0,0,0", "--beta", "0.5", "--episodes", 6,

@@ -131,6 +131,7 @@ def grid(toy_data):
     return grid_posterior(*toy_data)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("prior,alpha", [("log-uniform", 1.0), ("log-uniform", 2.0), ("paper", 1.0)])
 def test_map_matches_the_grid_optimum(toy_data, prior, alpha):
     """MAP is the mode of the posterior density in its coordinates (z, log β): on the grid, the
@@ -157,6 +158,7 @@ def test_map_matches_the_grid_optimum(toy_data, prior, alpha):
     assert lap["credible_intervals"]["beta"][0] < res.beta < lap["credible_intervals"]["beta"][1]
 
 
+@pytest.mark.slow
 def test_nuts_matches_the_grid_posterior_means(toy_data, grid):
     mdp, trajs = toy_data
     _, _, _, mean_t, mean_b = grid
@@ -174,6 +176,7 @@ def test_nuts_matches_the_grid_posterior_means(toy_data, grid):
     assert res.theta.shape == (2, 1000, 2) and res.beta.shape == (2, 1000)
 
 
+@pytest.mark.slow
 def test_map_recovers_an_off_grid_truth():
     """θ* = (0.62, 0.23, 0.15, 0, 0) is in no discrete set of the paper (its components are
     not multiples of the grid values); with 40 episodes MAP recovers direction and β.
@@ -199,6 +202,7 @@ def test_bad_options():
         nuts_posterior(mdp, trajs, num_chains=0)
 
 
+@pytest.mark.slow
 def test_the_prior_shows_in_the_result():
     """One expert episode says little about β. The default prior is flat in log β, the MAP's
     coordinate, so it leaves β̂ inside its range where the likelihood puts it (its density in β,

@@ -144,6 +144,7 @@ def crossroads():
     return load_bundled("crossroads").to_mdp()
 
 
+@pytest.mark.slow
 def test_an_expert_at_the_prior_edge_is_warned_with_a_one_sided_interval(crossroads):
     """Five short episodes of an expert (β* = 0.05, θ* from a Dirichlet) in which every action is
     optimal for some θ: the likelihood rises all the way to β's lower bound. MAP stops there, says

@@ -23,6 +23,7 @@ from expertise_irl.inference.misspecification import (
     verdict,
 )
 from expertise_irl.inference.predictive_checks import holm_rejections, p_value, simulate_from_starts
+from expertise_irl.inference.tabular_reward import augmented_mdp, support_states
 from expertise_irl.mdp import TabularMDP
 from expertise_irl.worlds.zones import parse_map
 
@@ -121,6 +122,24 @@ def test_fast_checks_tell_a_hidden_preference_from_a_well_specified_person(world
     assert a["beta_upper_bound"] > 0 and "beta_upper_bound" not in c
 
 
+def test_the_competitors_per_state_rewards_are_features_for_entering_the_support(world):
+    full, reduced, _ = world
+    trajs = simulate(full, np.array([0.3, 0.05, 0.6, 0.025, 0.025]), 0.05, 2, np.random.default_rng(0))
+    support = support_states(reduced, trajs)
+    assert set(trajs.state.tolist()) <= set(support.tolist()) and len(support) < reduced.n_states
+    k = reduced.n_features
+    rich = augmented_mdp(reduced, support)
+    assert rich.feature_names == (*reduced.feature_names, *(f"r{s}" for s in support))
+    np.testing.assert_array_equal(rich.features[..., :k], reduced.features)
+    s, a = np.nonzero(reduced.next_state >= 0)
+    column = {int(state): j for j, state in enumerate(support)}
+    expected = np.zeros((len(s), len(support)))
+    for row, state in enumerate(reduced.next_state[s, a]):
+        if int(state) in column:
+            expected[row, column[int(state)]] = 1.0
+    np.testing.assert_array_equal(rich.features[s, a, k:], expected)
+
+
 @pytest.mark.slow
 def test_full_check_the_per_state_reward_explains_the_hidden_preference(world):
     # Measured: A gains ~0.25 nats/action (SE ~0.015) with a β 0.6–0.7 times the features'; C loses
@@ -166,6 +185,7 @@ def demos(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_infer_writes_the_verdict_and_plot_check_draws_it(demos):
     out = demos / "r.json"
     ok(invoke("infer", "corridor", "--demos", demos / "d.csv", "--out", out, "--betas", "0.1,0.5,2"))

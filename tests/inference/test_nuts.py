@@ -34,6 +34,7 @@ def corridor_demos(corridor):
     return simulate(corridor, THETA, 0.5, 6, np.random.default_rng(3))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["maxent", "maxent-relative", "boltzmann"])
 def test_a_warm_start_changes_neither_the_value_nor_the_gradient(corridor, corridor_demos, model):
     f = make_log_likelihood(corridor, pair_counts(corridor, corridor_demos), tol=1e-12, model=model)
@@ -50,6 +51,7 @@ def test_a_warm_start_changes_neither_the_value_nor_the_gradient(corridor, corri
     assert abs(float(gb_warm - gb_cold)) < 1e-7 * max(1.0, abs(float(gb_cold)))
 
 
+@pytest.mark.slow
 def test_the_warm_start_is_the_solution_there(corridor, corridor_demos):
     f = make_log_likelihood(corridor, pair_counts(corridor, corridor_demos), tol=1e-12)
     start = f.start_at(jnp.asarray(THETA), 0.5)
@@ -78,6 +80,7 @@ def test_a_laplace_start_that_fails_keeps_the_chains_start():
     np.testing.assert_array_equal(cov, np.eye(2))
 
 
+@pytest.mark.slow
 def test_draws_do_not_depend_on_how_many_chains_run_at_once(corridor, corridor_demos, monkeypatch):
     kwargs = dict(num_warmup=30, num_samples=20, num_chains=3, seed=5)
     together = nuts_posterior(corridor, corridor_demos, **kwargs)
@@ -89,6 +92,7 @@ def test_draws_do_not_depend_on_how_many_chains_run_at_once(corridor, corridor_d
     assert len({float(b[0]) for b in together.beta}) == 3  # three chains, not one repeated
 
 
+@pytest.mark.slow
 def test_progress_counts_every_chains_iterations(corridor, corridor_demos):
     seen = []
     nuts_posterior(corridor, corridor_demos, num_warmup=30, num_samples=30, num_chains=2, seed=0,
@@ -97,6 +101,7 @@ def test_progress_counts_every_chains_iterations(corridor, corridor_demos):
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
 
 
+@pytest.mark.slow
 def test_two_tasks_sum_their_log_likelihoods(corridor):
     crossroads = load_bundled("crossroads").to_mdp()
     a = simulate(corridor, THETA, 0.5, 3, np.random.default_rng(1))
@@ -141,6 +146,7 @@ def test_a_target_acceptance_outside_0_1_is_refused(corridor, corridor_demos):
         nuts_posterior(corridor, corridor_demos, num_warmup=5, num_samples=5, target_accept=1.2)
 
 
+@pytest.mark.slow
 def test_repeated_runs_keep_no_compiled_code(corridor, corridor_demos):
     # A process that runs NUTS for every participant of a study must not run out of memory maps
     # (each run once left ~400 behind: about 150 runs exhausted Linux's default 65,530).
@@ -162,6 +168,7 @@ def test_repeated_runs_keep_no_compiled_code(corridor, corridor_demos):
     assert maps() - before < 100  # 4 runs: leaking ~400 each would add ~1,600
 
 
+@pytest.mark.slow
 def test_a_chain_stuck_at_one_value_is_no_posterior(corridor, corridor_demos, monkeypatch):
     """Chain 1 made to repeat one draw (as a chain whose every proposal is rejected does): every
     parameter gets ESS 0 and R-hat null with the reason, the document withholds the 90% intervals,

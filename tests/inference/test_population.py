@@ -117,6 +117,7 @@ def test_population_log_prior_is_the_stated_formula():
     assert data.group_names == ("a", "b") and data.groups.tolist() == [0, 1, 0, 1]
 
 
+@pytest.mark.slow
 def test_the_grid_resolves_the_population_of_beta():
     # The normalised density at the cells (spacing 0.29) has the normal's mean and sd (see the module
     # docstring: the error is ~1e-25 for a grid that covers ±5σ, plus the tails it cuts: ~1e-5).
@@ -157,6 +158,7 @@ def study_posterior(study):
     return sample_population(study.data, num_warmup=300, num_samples=300, num_chains=4, seed=0)
 
 
+@pytest.mark.slow
 def test_shrinkage_beats_independent_estimates(world, study, study_posterior):
     """Posterior mean β and θ per participant, shrunk (over the NUTS draws) against independent.
 
@@ -183,6 +185,7 @@ def test_shrinkage_beats_independent_estimates(world, study, study_posterior):
     assert p_theta < 0.01, (p_theta, cos_ind.mean(), cos_pop.mean())
 
 
+@pytest.mark.slow
 def test_hyperparameter_intervals_contain_the_truth(study, study_posterior):
     """90% equal-tailed intervals of μ and σ from the draws contain log 0.3 and 0.5.
 
@@ -218,6 +221,7 @@ def flat(G=1):
     return Hyperparameters(np.linspace(-1.0, 0.5, G), np.full(G, 1e6), K, np.full(K, 1.0 / K))
 
 
+@pytest.mark.slow
 def test_no_pooling_limit(world, study):
     """σ = 1e6 and α·m = 1: every participant's shrunk posterior is the independent one.
 
@@ -274,6 +278,7 @@ def pooling_psi(hyp, j, k):
     return Hyperparameters(math.log(hyp.betas[k]) + 0.3 * SPACING, 1e-3, 1e5, tt / tt.sum())
 
 
+@pytest.mark.slow
 def test_full_pooling_limit(world, clones):
     """σ → 0 and α → ∞ at (θ_j*, β_k*): Σ_i log p(Ξ_i | ψ) = Σ_i ℓ_i[j*, k*], full pooling.
 
@@ -298,6 +303,7 @@ def test_full_pooling_limit(world, clones):
     assert np.exp(logsumexp(lp, axis=0))[clones.k] == pytest.approx(1.0, abs=1e-12)
 
 
+@pytest.mark.slow
 def test_type2_ml_is_at_least_full_pooling_and_finds_the_shared_hypothesis(world, clones):
     """Full pooling at any h is a point of type-II ML's box (σ = 1e-3 and α = 1e5 are its bounds,
     m = θ̃_h ≥ 0.02 inside the z box), with Σ log p within 1e-8 of Σ_i ℓ_i[h] (previous test's
@@ -323,6 +329,7 @@ def test_type2_ml_is_at_least_full_pooling_and_finds_the_shared_hypothesis(world
 
 
 # ----------------------------------------------------------------------------- groups
+@pytest.mark.slow
 def test_two_groups_are_ordered(world):
     """20 people per group, log β ~ N(log 0.1, 0.4²) (A) and N(log 1, 0.4²) (B), θ as in the study,
     labels interleaved B, A, B, … (so B is group 0). The means are 2.3 nats apart; measured
@@ -386,6 +393,7 @@ def test_population_data_errors(small):
 
 
 # ----------------------------------------------------------------------------- held-out
+@pytest.mark.slow
 def test_heldout_comparison(world, study):
     """Leave-one-episode-out on the simulated study (2 units per person: train on one episode,
     predict the other).
@@ -448,6 +456,7 @@ def load_sbc_benchmark():
     return sys.modules["population_sbc"]
 
 
+@pytest.mark.slow
 def test_without_data_nuts_samples_the_hyperprior_the_sbc_draws_from(world):
     """With every ℓ_i = 0 the likelihood is constant (Σ_h P(h | ψ)·1 = 1), so the posterior is the
     hyperprior: NUTS's draws must follow the distributions the SBC benchmark draws ψ* from. This is
@@ -530,6 +539,7 @@ def test_sbc_of_the_hyperparameters(world):
         assert q["p_value"] > 1e-3, (name, q)
 
 
+@pytest.mark.slow
 def test_fast_marginal_and_theta_prior_agree_with_their_definitions(study, study_posterior):
     """The marginal's β sum taken as a product with the row-scaled likelihood equals the plain
     log-sum-exp over every cell at the posterior's draws (its floor never acts there), and the

@@ -82,6 +82,7 @@ def test_the_tasks_must_pair_up_and_share_features(two_tasks):
         fit_shared_beta("nuts", mdps, trajs, get_method("map").options_from({}), 0)
 
 
+@pytest.mark.slow
 def test_sharing_beta_recovers_each_tasks_theta_where_one_theta_cannot(corridor):
     # 30 episodes a task on the same map, two different rewards, one β. Over simulation seeds 0-3
     # (30 and 60 episodes) shared-β MAP reached cos 0.95-1.0 on both tasks and one shared θ
@@ -101,6 +102,7 @@ def test_sharing_beta_recovers_each_tasks_theta_where_one_theta_cannot(corridor)
     assert shared.starts.shape == (4, 2 * 5 + 1) and shared.optima.shape == (4,)
 
 
+@pytest.mark.slow
 def test_with_one_task_map_is_map_estimate(corridor):
     demos = simulate(corridor, THETA_A, 0.5, 6, np.random.default_rng(3))
     shared = map_shared_beta(corridor, demos, n_starts=3, rng=np.random.default_rng(4))
@@ -132,6 +134,7 @@ def test_with_one_task_nuts_agrees_with_nuts_posterior_within_monte_carlo_error(
         assert abs(x.mean() - y.mean()) < 4 * se
 
 
+@pytest.mark.slow
 def test_nuts_on_two_tasks_gives_draws_per_task_and_finite_summaries(two_tasks):
     mdps, trajs = two_tasks
     opts = get_method("nuts").options_from({"chains": 2, "warmup": 30, "samples": 30})
@@ -154,6 +157,7 @@ def test_nuts_on_two_tasks_gives_draws_per_task_and_finite_summaries(two_tasks):
     assert np.all(np.isfinite(theta)) and np.all(beta > 0)
 
 
+@pytest.mark.slow
 def test_map_fields_mirror_the_map_methods(two_tasks):
     mdps, trajs = two_tasks
     opts = get_method("map").options_from({"starts": 2, "chains": 9})

@@ -107,6 +107,7 @@ def test_gradient_matches_finite_differences(mdp, demo):
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_fit_trend_dict(mdp, demo):
     opts = get_method("map").options_from({"starts": 2, "model": MODEL})
     out = fit_trend(mdp, demo, opts, seed=0)
@@ -146,6 +147,7 @@ TRUE_BETAS = np.exp(np.linspace(math.log(2.0), math.log(0.05), E))
 TRUE_SLOPE = math.log(0.05 / 2.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_learner_recovered(mdp, seed):
     trajs = learner(mdp, TRUE_BETAS, seed)
@@ -156,6 +158,7 @@ def test_learner_recovered(mdp, seed):
     assert np.allclose(r.betas, r.beta0 * np.exp(r.slope * episode_grid(E)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_steady_person_has_small_slope(mdp, seed):
     trajs = learner(mdp, np.full(E, 0.3), seed)
@@ -163,6 +166,7 @@ def test_steady_person_has_small_slope(mdp, seed):
     assert abs(r.slope) < SLOPE_TOL
 
 
+@pytest.mark.slow
 def test_several_tasks_make_one_curve_in_the_tasks_order(mdp, demo):
     """Two tasks (two maps with the same features): their episodes are one curve, the first task's
     in turn and then the second's, g(e) running over all six; each episode's likelihood is taken

@@ -46,6 +46,7 @@ def falling(mdp):
     return learner(mdp, list(np.geomspace(2.0, 0.05, 7)), seed=11)
 
 
+@pytest.mark.slow
 def test_potential_is_negative_log_posterior_plus_jacobian(mdp, falling):
     post, g = trend_posterior(mdp, falling, model=MODEL)
     K = mdp.n_features

@@ -285,6 +285,7 @@ def spawn_live(map_path, out):
     return proc, f"ws://{m.group(1)}/ws"
 
 
+@pytest.mark.slow
 def test_sigkill_mid_episode_then_restart_resumes(tmp_path, zone_map):
     """The real server, killed with SIGKILL mid-episode: what was done is on disk and resumes."""
     import asyncio
@@ -399,6 +400,7 @@ def test_live_command_without_a_set_is_adaptive(tmp_path, monkeypatch):
                        "--refine")
 
 
+@pytest.mark.slow
 def test_next_start_command(tmp_path):
     demos = tmp_path / "demos.csv"
     ok(invoke("simulate", "crossroads", "--theta", "1,1,0,0,0", "--beta", "0.5", "--episodes", 2,
@@ -444,6 +446,7 @@ def demo_rows(path) -> list[list[str]]:
     return [line.split(",") for line in path.read_text().splitlines()]
 
 
+@pytest.mark.slow
 def test_floor_plan_session_records_headings_and_resumes(tmp_path, plan_path, hyp3):
     from expertise_irl.plots.floorplan import CELL_COLORS, GOAL_FILL, ROAD_COLOR
     from expertise_irl.worlds.maps import resolve_world
@@ -595,6 +598,7 @@ def drive_episode(ws, session) -> tuple[dict, dict]:
     return move(ws, ACTION_NAMES[actions[-1]]), ws.receive_json()
 
 
+@pytest.mark.slow
 def test_an_adaptive_session_refines_its_set_after_each_episode(tmp_path, zone_map):
     from expertise_irl.inference.adaptive import start_set
 
@@ -646,6 +650,7 @@ def test_an_adaptive_session_refines_its_set_after_each_episode(tmp_path, zone_m
     assert session.history_beta[n0:] != pytest.approx(coarse.mean_beta[n0 + 1:].tolist(), rel=1e-6)
 
 
+@pytest.mark.slow
 def test_an_adaptive_session_resumes_on_the_same_set_and_belief(tmp_path, zone_map):
     session, client = make_adaptive(zone_map, tmp_path)
     mdp = session.mdp

@@ -117,6 +117,7 @@ def live_page(sync_api, url: str):
             browser.close()
 
 
+@pytest.mark.slow
 def test_drive_an_episode_in_chromium(server, tmp_path):
     sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
     url, map_path, out = server
@@ -172,6 +173,7 @@ def test_drive_an_episode_in_chromium(server, tmp_path):
     assert raw_get(url, "/static/live.js")[0] == 200
 
 
+@pytest.mark.slow
 def test_changing_expertise_shows_this_episodes_beta_in_chromium(tmp_path):
     """``live --expertise changing``: the page shows the current episode's β (filtered) beside β̂,
     and it follows the moves."""
@@ -197,6 +199,7 @@ def test_changing_expertise_shows_this_episodes_beta_in_chromium(tmp_path):
         assert not errors, errors
 
 
+@pytest.mark.slow
 def test_an_adaptive_set_is_refined_after_an_episode_in_chromium(tmp_path):
     """No set named: the page starts on the coarse start set, shows the refined set (its β bars and
     size) once an episode ends, and the next episode is driven over it."""
@@ -244,6 +247,7 @@ S...xx.....
 PLAN_MOVES = ["down"] + ["right"] * 9 + ["down"] * 3  # along the road, turning twice
 
 
+@pytest.mark.slow
 def test_drive_a_floor_plan_in_chromium(tmp_path):
     """A warehouse floor plan: drawn, driven with turns, recorded with the heading column."""
     sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
@@ -273,6 +277,7 @@ def test_drive_a_floor_plan_in_chromium(tmp_path):
     assert [r[4] for r in rows[1:]] == [first] + ["v" if m == "down" else "h" for m in PLAN_MOVES]
 
 
+@pytest.mark.slow
 def test_a_large_floor_plan_fills_the_window(tmp_path):
     """The bundled study's 67×40 floor plan gets comfortable cells at 1280×800 (the map fills the
     space beside the estimate), and follows the window when it is resized."""

@@ -77,6 +77,7 @@ def real_set(plan_mdp):
     return np.repeat(th, len(be), axis=0), np.tile(be, len(th))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["jumps", "levels"])
 def test_jumps_and_levels_agree_with_sweeps_within_the_tolerance_and_save_sweeps(plan_mdp, real_set, method):
     theta, beta = real_set
@@ -93,6 +94,7 @@ def test_jumps_and_levels_agree_with_sweeps_within_the_tolerance_and_save_sweeps
         assert jumps.iterations[low].mean() < 0.5 * sweeps.iterations[low].mean()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["jumps", "levels"])
 def test_jumped_and_level_solutions_are_the_same_whatever_the_lane_width(plan_mdp, real_set, method):
     theta, beta = real_set[0][::2], real_set[1][::2]
@@ -120,6 +122,7 @@ def test_method_choice_and_its_errors(monkeypatch):
         solve(small, np.ones((1, 1)), 0.5, method="lu")
 
 
+@pytest.mark.slow
 def test_large_maps_default_to_level_order(plan_mdp, monkeypatch):
     monkeypatch.delenv(soft_vi.SOLVER_ENV, raising=False)
     theta, beta = [[1.0, 0, 0], [0, 0, 1.0]], [0.1, 0.3]
@@ -157,6 +160,7 @@ def test_the_pool_shrinks_to_the_memory_it_has():
     assert kernels.available_memory() > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["jumps", "levels"])
 @pytest.mark.parametrize("model", ["maxent-relative", "boltzmann"])
 def test_jumps_and_levels_meet_the_same_guarantee_under_the_other_models(model, method):
@@ -219,6 +223,7 @@ def _backup_np(model: str, q: np.ndarray, n_actions: np.ndarray) -> np.ndarray:
     return logsumexp(q, axis=1) - (np.log(n_actions) if model == "maxent-relative" else 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["maxent", "maxent-relative", "boltzmann"])
 def test_the_level_start_is_the_walk_towards_the_goal_and_a_lower_bound(model):
     import jax.numpy as jnp
@@ -269,6 +274,7 @@ def test_a_cold_level_solve_starts_from_the_walk_towards_the_goal():
     np.testing.assert_allclose(cold.value / 0.1, zero.value / 0.1, rtol=0, atol=2e-8)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["sweeps", "levels"])
 def test_a_pool_with_nothing_left_to_hand_out_shrinks_without_changing_any_answer(plan_mdp, real_set,
                                                                                   monkeypatch, method):
@@ -301,6 +307,7 @@ def test_a_pool_with_nothing_left_to_hand_out_shrinks_without_changing_any_answe
     assert np.max(np.abs(shrunk.value - whole.value) / beta[:, None]) <= 1e-9
 
 
+@pytest.mark.slow
 def test_a_few_hypotheses_on_a_large_map_take_narrower_lanes(plan_mdp, monkeypatch):
     seen = []
     pool = kernels.solve_pool

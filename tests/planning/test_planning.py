@@ -74,6 +74,7 @@ def lp_error(a: np.ndarray, b: np.ndarray) -> float:
 
 
 # --------------------------------------------------------------------------- reference match
+@pytest.mark.slow
 @PROPERTY
 @given(mdp_cases())
 def test_solve_matches_reference(case):
@@ -155,6 +156,7 @@ def test_accuracy_at_the_float64_limit():
 
 
 # --------------------------------------------------------------------------- policy sanity
+@pytest.mark.slow
 @PROPERTY
 @given(mdp_cases())
 def test_policies_normalised_and_masked(case):
@@ -204,6 +206,7 @@ def _greedy_mass(policy, greedy):
     return np.array([policy[s, sorted(g)].sum() if g else 1.0 for s, g in enumerate(greedy)])
 
 
+@pytest.mark.slow
 @PROPERTY
 @given(mdp_cases())
 def test_small_beta_mass_bound(case):
@@ -465,6 +468,7 @@ def _large_set(rng, mdp, n):
     return theta, beta
 
 
+@pytest.mark.slow
 def test_float32_start_meets_the_same_guarantee():
     """A set large enough for the float32 first phase: every hypothesis is within the
     tolerance of the extended-precision reference, as a cold float64 solve is (the float64
@@ -506,6 +510,7 @@ def test_float32_start_falls_back_where_float32_overflows():
     np.testing.assert_array_equal(mixed.iterations, cold.iterations)
 
 
+@pytest.mark.slow
 def test_over_relaxation_meets_the_guarantee_in_fewer_sweeps():
     """On a grid (red-black ordering), the wandering hypotheses (large β) switch to SOR and the
     near-deterministic ones mostly stay plain: every one is within the tolerance of the

@@ -102,6 +102,7 @@ def test_the_environment_overrides_and_a_bad_value_is_named(fresh, monkeypatch):
     assert not fresh.exists()
 
 
+@pytest.mark.slow
 def test_a_real_measurement_picks_the_fastest_candidate(fresh):
     """The timing run itself (a few seconds): every CPU candidate is measured, the choice is the
     fastest of them, and it is written to the cache."""
@@ -113,6 +114,7 @@ def test_a_real_measurement_picks_the_fastest_candidate(fresh):
     assert json.loads(fresh.read_text())[tuning.machine_key("float64")]["lanes"] == choice.lanes
 
 
+@pytest.mark.slow
 def test_solutions_agree_within_the_tolerance_whatever_the_width():
     mdp = resolve_world("corridor").to_mdp()
     rng = np.random.default_rng(3)
@@ -151,6 +153,7 @@ def test_tune_command_shows_the_choice_and_its_measurements(fresh, monkeypatch):
     assert_input_error(invoke("tune"), "EXPERTISE_IRL_LANES must be a whole number >= 1, got 'x'")
 
 
+@pytest.mark.slow
 def test_a_command_says_why_it_pauses_on_first_use(fresh, monkeypatch, tmp_path):
     calls = []
     monkeypatch.setattr(tuning, "_measure", _fake_measure(calls))

@@ -252,6 +252,7 @@ def test_map_result_is_a_marked_point(results):
     assert "point" in fig.get_suptitle()
 
 
+@pytest.mark.slow
 def test_samples_csv_beside_the_result_is_found(tmp_path, monkeypatch):
     from expertise_irl.results import INLINE_DRAWS
 
@@ -278,6 +279,7 @@ def test_samples_csv_beside_the_result_is_found(tmp_path, monkeypatch):
 
 
 # ------------------------------------------------------------------------------ CLI
+@pytest.mark.slow
 @pytest.mark.parametrize("method", METHODS)
 def test_every_method_plots(method, results, demos, tmp_path):
     out = tmp_path / f"{method}.png"
@@ -290,6 +292,7 @@ def test_every_method_plots(method, results, demos, tmp_path):
     assert bare.read_bytes()[:8] == PNG_SIGNATURE
 
 
+@pytest.mark.slow
 def test_plot_on_an_mdp_archive(results, demos, work, tmp_path):
     npz = work / "corridor.npz"
     if not npz.exists():
@@ -327,6 +330,7 @@ def crossroads_task(work):
     return mdp, simulate(mdp, np.array([0.5, 0.5, 0, 0, 0]), 0.5, 20, np.random.default_rng(1))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("world", ["corridor", "crossroads"])
 @pytest.mark.parametrize("source", ["mdp", "map"])
 @pytest.mark.parametrize("method", METHODS)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgb
 
@@ -44,6 +45,7 @@ def test_panels_fill_their_grid_and_say_what_they_count():
     assert check.statistic_unit("feature_road") == "Σ φ_road per episode"
 
 
+@pytest.mark.slow
 def test_obstacles_are_drawn_in_the_obstacle_colour_not_white():
     zone_map = load_bundled_world("crossroads")
     mdp = zone_map.to_mdp()

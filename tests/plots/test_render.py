@@ -349,6 +349,7 @@ def test_demo_figure_labels_joint_and_marginal_and_absent_features(wandering_run
     assert absent_features(run.mdp) == run.absent_features() == [False, True, False, False, False]
 
 
+@pytest.mark.slow
 def test_demo_figure_of_an_expert_reports_no_cap(expert_run, tmp_path):
     run = expert_run
     fig = render.demo_figure(run)

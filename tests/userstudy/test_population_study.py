@@ -18,7 +18,7 @@ FEATURES = ("length", "road", "avoid", "slow", "traffic")
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
+def manifest(tmp_path_factory):
     """Ten people on crossroads, two episodes each, in two groups whose β differ fourfold
     (log β ~ N(log 0.15, 0.4²) and N(log 0.6, 0.4²)), θ ~ Dirichlet(20·m)."""
     d = tmp_path_factory.mktemp("population")
@@ -32,12 +32,20 @@ def study(tmp_path_factory):
         write_demos_csv(d / f"p{i}.csv", tr, mdp)
         lines.append(f"p{i},crossroads,p{i}.csv,{g}")
     (d / "m.csv").write_text("\n".join(lines) + "\n")
+    return d, mdp
+
+
+@pytest.fixture(scope="module")
+def study(manifest):
+    """The study of :func:`manifest` with ``--population``."""
+    d, mdp = manifest
     res = invoke("study", d / "m.csv", "--out", d / "out", "--workers", "1", "--population", "--group-by",
                  "group", "--figures", "none")
     ok(res)
     return d, mdp, res
 
 
+@pytest.mark.slow
 def test_population_outputs(study):
     d, _, res = study
     out = d / "out"
@@ -76,6 +84,7 @@ def test_population_outputs(study):
     assert "population: A: median β" in res.stdout and "population.json, population.png" in res.stdout
 
 
+@pytest.mark.slow
 def test_population_is_fitted_to_the_participants_own_likelihoods(study):
     """type-II ML in population.json equals the library's on the participants' grid likelihoods,
     computed here from their files with a solve of our own."""
@@ -98,8 +107,8 @@ def test_population_is_fitted_to_the_participants_own_likelihoods(study):
     assert doc["type2_ml"]["log_marginal"] == pytest.approx(fit.log_marginal, abs=1e-6)
 
 
-def test_population_is_refused_where_it_does_not_apply(study):
-    d, _, _ = study
+def test_population_is_refused_where_it_does_not_apply(manifest):
+    d, _ = manifest
     base = ("study", d / "m.csv", "--out", d / "x", "--population")
     assert_input_error(invoke(*base, "--method", "map"), "--population needs --method discrete")
     assert_input_error(invoke(*base, "--share", "beta"), "--population needs --share both")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import assert_input_error, invoke
+from cli_helpers import assert_input_error, invoke, ok
 from scipy.stats import spearmanr
 
 from expertise_irl.demos.csv_io import write_demos_csv
@@ -142,6 +142,7 @@ def test_manifest_errors_name_the_file_and_line(study_dir, text, fragments):
     assert not (study_dir / "out").exists()  # nothing is started before the inputs are known good
 
 
+@pytest.mark.slow
 def test_missing_manifest_and_a_foreign_out_dir(study_dir):
     assert_input_error(
         invoke("study", study_dir / "nope.csv", "--out", study_dir / "o"), "nope.csv", "no such manifest"
@@ -161,6 +162,20 @@ def read_csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
+def test_one_participant_on_one_floor_plan_is_a_study(study_dir):
+    """The smallest study, once through: the table, the documents and the participant's estimate."""
+    write(study_dir / "one.csv", "participant,map,recording,demos\nP1,a.txt,p1.csv,\n")
+    out = study_dir / "out"
+    ok(invoke("study", study_dir / "one.csv", "--out", out, "--workers", "1", "--thetas", "0,0.5,1",
+              "--betas", "0.1,1,10", "--figures", "none"))
+    (row,) = read_csv(out / "study.csv")
+    assert row["participant"] == "P1" and row["tasks"] == "1"
+    assert float(row["beta_q05"]) <= float(row["beta_hat"]) and 0 < float(row["beta_hat"])
+    assert abs(sum(float(row[f"p_{g}"]) for g in ("high", "medium", "low")) - 1) < 1e-9
+    assert "P1" in (out / "study.md").read_text(encoding="utf-8")
+
+
+@pytest.mark.slow
 def test_study_outputs_resume_and_multi_task_product(study_dir, monkeypatch):
     """On the study's fixed set (--no-refine; tests/userstudy/test_study_refine.py refines it)."""
     out = study_dir / "out"
@@ -334,6 +349,7 @@ def test_bundled_study_recovers_the_ordering_of_expertise(tmp_path):
     assert all(int(r["optimal_reached_goal"]) == int(r["episodes"]) for r in est.values())
 
 
+@pytest.mark.slow
 def test_map_and_nuts_studies_fit_each_participant_on_all_their_tasks(study_dir):
     from expertise_irl.demos.csv_io import read_demos_csv
     from expertise_irl.demos.recordings import discretise_recording
@@ -408,6 +424,7 @@ def manifest_trajectories(study_dir):
     return out
 
 
+@pytest.mark.slow
 def test_study_models_evidence_is_the_brute_force_sum_over_tasks_and_resumes(study_dir):
     from scipy.special import logsumexp
 

@@ -78,6 +78,7 @@ def mixed(tmp_path):
     return tmp_path
 
 
+@pytest.mark.slow
 def test_a_manifest_mixing_a_floor_plan_a_zone_map_and_an_archive_runs(mixed):
     out = mixed / "out"
     res = invoke("study", mixed / "manifest.csv", "--out", out, "--workers", "1", "--figures", "1",
@@ -115,6 +116,7 @@ def test_a_manifest_mixing_a_floor_plan_a_zone_map_and_an_archive_runs(mixed):
     assert "0 engine task(s) run" in res.stdout
 
 
+@pytest.mark.slow
 def test_an_archive_study_is_infer_mdp_on_each_task_multiplied(mixed, tmp_path):
     out = tmp_path / "npz"
     write(tmp_path / "m.csv", "participant,map,demos\nP3,corridor.npz,p3a.csv\nP3,corridor.npz,p3b.csv\n")
@@ -158,6 +160,7 @@ def test_recordings_need_a_floor_plan_and_bad_maps_are_named(mixed):
 
 
 # ------------------------------------------------------------------------ --share beta
+@pytest.mark.slow
 def test_share_beta_recovers_each_tasks_theta_and_is_the_product_over_tasks(tmp_path):
     mdp = load_bundled("corridor").to_mdp()
     mdp.save(tmp_path / "c.npz")
@@ -255,6 +258,7 @@ def test_share_beta_leave_one_episode_out_is_the_explicit_predictive():
 
 
 # ------------------------------------------------------------------------ diagnostics
+@pytest.mark.slow
 def test_an_expert_below_the_grid_and_a_constant_feature_are_warned(tmp_path):
     zone = parse_map("S....\n.###.\n.....\n....G\n", name="open")  # no road, avoid, slow, traffic cells
     write(tmp_path / "open.txt", zone.to_text())
@@ -288,6 +292,7 @@ def test_an_expert_below_the_grid_and_a_constant_feature_are_warned(tmp_path):
         assert float(r["beta_mean"]) == pytest.approx(float(r["beta_hat"]))
 
 
+@pytest.mark.slow
 def test_share_beta_with_map_is_the_libraries_shared_beta_fit(mixed):
     from expertise_irl.demos.csv_io import read_demos_csv
     from expertise_irl.inference.shared_beta import map_shared_beta

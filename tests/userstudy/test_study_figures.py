@@ -160,6 +160,7 @@ def check_layout_rules(fig) -> None:
         assert ax.get_position().width >= 1 / 3 - 1e-9, (ax.get_gid(), ax.get_position().width)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n", [1, 3, 12])
 @pytest.mark.parametrize("kind", ["floorplan", "zones", "layout", "nolayout"])
 def test_layout_rules_for_each_world(kind, n):
@@ -177,6 +178,7 @@ def test_layout_rules_for_each_world(kind, n):
         assert widths == {round(1 / min(n, us.MAX_COLUMNS), 9)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method,share", [("discrete", "both"), ("nuts", "beta"), ("map", "both")])
 def test_fonts_and_beta_ticks_readable(method, share):
     d = doc(method, share, warnings=["a long warning " * 30, "second"], tasks=3)
@@ -297,6 +299,7 @@ def test_warnings_and_modes_are_printed():
     assert not by_gid(quiet, "warnings") and not by_gid(quiet, "modes")
 
 
+@pytest.mark.slow
 def test_png_is_the_same_whatever_the_callers_rcparams(tmp_path):
     d = doc("nuts")
     ps = panels_for(d, ["zones"])
@@ -325,6 +328,7 @@ def test_light_panels_and_the_old_panel_contract_draw_the_same_figure():
 
 
 # ----------------------------------------------------------------- parallel drawing
+@pytest.mark.slow
 def test_draw_figures_same_bytes_with_two_workers(tmp_path):
     jobs = []
     for i, method in enumerate(["discrete", "nuts", "map"]):
@@ -400,6 +404,7 @@ def test_study_overview_rows_follow_beta_hat(tmp_path):
     assert out.read_bytes().startswith(b"\x89PNG")
 
 
+@pytest.mark.slow
 def test_study_overview_labels_every_kth_row_when_crowded():
     fig = study_figure(study_rows(600), WH_NAMES)
     ax = by_gid(fig, "study-beta")[0]

@@ -48,6 +48,7 @@ def study(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_study_csv_and_md_carry_each_participants_verdict(study):
     # The default (--check fast). Measured with these seeds: A's visits lie far outside the
     # replicates' (p ≈ 0.001, Holm's threshold 0.05/8), C's checks all pass, D has one episode

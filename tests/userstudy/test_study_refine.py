@@ -69,6 +69,7 @@ def study(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_no_named_set_refines_each_participant_as_refining_their_tasks_directly(study):
     out = study / "default"
     rows = {r["participant"]: r for r in read_csv(out / "study.csv")}
@@ -97,6 +98,7 @@ def test_no_named_set_refines_each_participant_as_refining_their_tasks_directly(
     assert all(p2["beta_hat"] != pytest.approx(t["beta_hat"], rel=1e-3) for t in p2["tasks"])
 
 
+@pytest.mark.slow
 def test_a_named_set_stays_fixed(study):
     out = study / "named"
     grid = ",".join(f"{b:g}" for b in result(study / "default", "P1")["settings"]["beta_grid"])
@@ -108,6 +110,7 @@ def test_a_named_set_stays_fixed(study):
         assert len(doc["hypotheses"]) == len(resolve_thetas("paper-real", 5)) * len(grid.split(","))
 
 
+@pytest.mark.slow
 def test_a_study_made_without_refinement_resumes_and_may_refine(study):
     """--no-refine writes the study.json the defaults wrote before refinement existed; the default
     then resumes it (inference not run again), refines, and --no-refine again finds everything done."""
@@ -128,6 +131,7 @@ def test_a_study_made_without_refinement_resumes_and_may_refine(study):
     assert "0 engine task(s) run, 4 already done" in res.stdout and (out / "study.csv").read_bytes() == fixed
 
 
+@pytest.mark.slow
 def test_the_check_runs_on_the_refined_posterior(study, monkeypatch, tmp_path):
     from expertise_irl.inference import misspecification
     from expertise_irl.userstudy.run import ReportOptions, StudyOptions, run_study
@@ -147,6 +151,7 @@ def test_the_check_runs_on_the_refined_posterior(study, monkeypatch, tmp_path):
         np.testing.assert_allclose(seen[pid]["beta"], [h["beta"] for h in doc["hypotheses"]])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("extra", [("--share", "beta"), ("--expertise", "changing")])
 def test_refine_needs_one_theta_and_beta_per_participant(study, tmp_path, extra):
     assert_input_error(invoke("study", study / "manifest.csv", "--out", tmp_path / "x", "--refine", *extra),

@@ -131,6 +131,7 @@ def _capped_share(mdp, thetas, beta, seed, episodes) -> float:
     return float(np.concatenate(flags).mean())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", bundled_maps())
 @pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow)])
 def test_experts_finish_under_fixed_and_wander_under_scaled(name, seed):
@@ -190,6 +191,7 @@ def test_archive_keeps_the_offset(tmp_path, crossroads):
 
 
 # ------------------------------------------------------------------------ the command line
+@pytest.mark.slow
 def test_goal_reward_option_reaches_archive_simulation_and_result(tmp_path):
     npz = tmp_path / "fixed.npz"
     ok(invoke("export-mdp", "corridor", "--out", npz, "--goal-reward", "fixed"))
@@ -223,6 +225,7 @@ def test_goal_reward_option_errors(tmp_path):
                        "--goal-reward applies to a MAP")
 
 
+@pytest.mark.slow
 def test_study_rows_record_the_protocol():
     from expertise_irl.experiments.studies.fixed_vs_joint import SCALES, run_task, tasks
 

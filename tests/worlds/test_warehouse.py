@@ -272,6 +272,7 @@ def test_a_heading_letter_other_than_h_or_v_is_an_error(tmp_path):
 
 
 # ------------------------------------------------------------------ commands
+@pytest.mark.slow
 def test_simulate_infer_render_and_export_work_on_a_floor_plan(tmp_path):
     p = write_plan(tmp_path, "S..>>.\n.#x..v\n.....G\n", 'world = "warehouse"\ncell_size = 0.5\n'
                    "gamma = 0.9\n")
