@@ -485,12 +485,23 @@ def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any
             "max_seconds": opts.max_seconds,
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
             "prior": fit.refined.record["prior"] if refined else "uniform",
-            "model": opts.model, "per_action": opts.per_action, "tol": opts.tol,
+            "model": opts.model, "per_action": opts.per_action, "tol": _tol_used(fit, opts),
             **_certified_settings(fit), "expertise": opts.expertise,
             **({"epsilons": list(fit.changing[0].epsilons.tolist()),
                 "epsilon_prior": "P(ε = 0) = 1/2, the rest uniform over ε > 0",
                 "chain": "β_1 uniform; stay 1 − ε, else a neighbouring grid value (ε/2 each side)"}
                if fit.changing is not None else {})}
+
+
+def _tol_used(fit: DiscreteFit, opts: DiscreteOptions) -> float | None:
+    """The tolerance asked for: ``opts.tol``, else 1e-8 where every hypothesis is solved to one
+    tolerance (a trace, changing expertise), else None (certified: ``solver_tol`` and
+    ``probability_error`` say what was reached)."""
+    from ..planning.soft_vi import DEFAULT_TOL
+
+    if opts.tol is not None:
+        return opts.tol
+    return None if fit.refined is not None or fit.certified is not None else DEFAULT_TOL
 
 
 def _certified_settings(fit: DiscreteFit) -> dict[str, Any]:
