@@ -45,3 +45,8 @@ def test_the_slow_marker_and_the_quick_tier_are_explained():
     assert any(m.startswith("slow:") for m in markers)
     para = _paragraph(README, "`slow` marker")
     assert 'pytest -m "not slow"' in para
+    assert "`tests/test_quick_tier.py`" in para and (ROOT / "tests" / "test_quick_tier.py").is_file()
+    assert re.search(r"took [\d.]+ minutes on a fresh clone of a 2-core machine at a load average of \d",
+                     para)
+    for folder in re.findall(r"`(tests/[a-z]+/)`", para):
+        assert (ROOT / folder).is_dir(), folder
