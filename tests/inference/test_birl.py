@@ -331,9 +331,10 @@ def test_impossible_demonstration_raises(tiny):
 # ------------------------------------------------------------------------ a chain that does not move
 def _document(res, names):
     """The result document of an Algorithm 1 chain, as `infer` writes it."""
-    from expertise_irl.inference.methods import BIRLOptions, MethodRun, document, get_method
+    from expertise_irl.inference.methods import BIRLOptions, ContinuousFit, MethodRun, document, get_method
 
-    fields = {**get_method("birl").describe(res, BIRLOptions(variant="simplex"), names), "run_time_s": 1.0}
+    fit = ContinuousFit(res)  # what the registry's fit returns
+    fields = {**get_method("birl").describe(fit, BIRLOptions(variant="simplex"), names), "run_time_s": 1.0}
     return document(MethodRun("birl", res, fields, {}), feature_names=names, settings={}, data={})
 
 
