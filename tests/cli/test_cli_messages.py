@@ -55,3 +55,20 @@ def test_system_reasons_in_the_package_s_words():
 
     assert os_reason(FileNotFoundError(errno.ENOENT, "No such file or directory", "x")) == "no such file"
     assert os_reason(PermissionError(errno.EACCES, "Permission denied", "x")) == "permission denied"
+
+
+@pytest.mark.parametrize(("given", "flag"), [(("--max-seconds", "5"), "--max-seconds"),
+                                             (("--max-hypotheses", "500"), "--max-hypotheses")])
+@pytest.mark.parametrize("unrefined", [("--thetas", "paper-real"), ("--no-refine",)])
+def test_refinement_caps_are_refused_for_a_set_that_is_not_refined(tmp_path, given, flag, unrefined):
+    """A cap on the refinement given for a named set (or with --no-refine) would do nothing: one line
+    says so, before any work, and nothing is written."""
+    from cli_helpers import assert_input_error
+
+    demos = tmp_path / "d.csv"
+    ok(invoke("simulate", "corridor", "--theta", "1,0,0,0,0", "--beta", "0.5", "--episodes", "1",
+              "--seed", "0", "--out", demos))
+    out = tmp_path / "r.json"
+    res = invoke("infer", "corridor", "--demos", demos, "--out", out, *unrefined, *given)
+    assert_input_error(res, flag, "not refined", "--refine")
+    assert not out.exists()

@@ -313,6 +313,7 @@ def infer(
     inputs = [demos, *_map_files(map_spec), mdp_path]
     check_writable(out_path, force=force, inputs=inputs)
     opts = chosen.options_from(ctx.params)
+    _refuse_caps_without_refinement(ctx, opts)
     world = _world(map_spec, mdp_path, goal_reward)
     data = as_demos(demos, world)
     prepare_solver(measure=chosen.measure_lanes)  # the others solve one hypothesis at a time
@@ -386,6 +387,20 @@ def _refuse_options_of_other_methods(ctx: typer.Context, method: str) -> None:
             flag = "--" + name.replace("_", "-")
             which = " or ".join(f"--method {m}" for m in methods)
             raise InputError(f"{flag} applies only to {which}, not to --method {method}")
+
+
+def _refuse_caps_without_refinement(ctx: typer.Context, opts) -> None:
+    """--max-seconds and --max-hypotheses cap the refinement: given for a set that is not refined
+    they would do nothing, so they are refused rather than ignored."""
+    if getattr(opts, "refines", True):
+        return
+    for name in ("max_seconds", "max_hypotheses"):
+        source = ctx.get_parameter_source(name)
+        if source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP"):
+            flag = "--" + name.replace("_", "-")
+            raise InputError(f"{flag} caps the refinement of the hypothesis set, and this set is not "
+                             "refined (a named set, --no-refine or --expertise changing): leave it out, or "
+                             "add --refine")
 
 
 @app.command()
