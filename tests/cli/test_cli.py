@@ -207,6 +207,7 @@ def test_demo_table_shows_truth_inference_and_metrics(demo_a):
     assert table_cells(stdout, "expertise distance") == ["", f"{m['expertise_distance']:.3g}"]
     assert table_cells(stdout, "cosine similarity") == ["", f"{m['cosine_similarity']:.3f}"]
     assert table_cells(stdout, "policy regret") == ["", f"{m['policy_regret']:.3g}"]
+    assert table_cells(stdout, "return regret") == ["", f"{m['return_regret']:.3g}"]
     assert str(out_dir / "demo-corridor-seed0.png") in stdout
     assert str(out_dir / "result-corridor-seed0.json") in stdout
 

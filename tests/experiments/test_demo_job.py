@@ -9,11 +9,11 @@ from expertise_irl.errors import InputError
 from expertise_irl.experiments.demo import DEFAULT_EPISODES, DEFAULT_K, DEMO_BETAS, demo_outputs, run_demo
 from expertise_irl.hypotheses import BETA_PRESETS, THETA_PRESETS, expertise_group, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
-from expertise_irl.metrics import cosine_similarity, policy_regret
+from expertise_irl.metrics import cosine_similarity, policy_regret, return_regret
 
 SUMMARY_KEYS = {
     "theta_true", "beta_true", "group_true", "theta_hat", "beta_hat", "group_hat",
-    "truth_probability", "expertise_distance", "cosine_similarity", "policy_regret",
+    "truth_probability", "expertise_distance", "cosine_similarity", "policy_regret", "return_regret",
 }
 
 
@@ -74,6 +74,9 @@ def test_metrics_consistent_with_belief(run):
         policy_regret(run.mdp, run.theta_true, run.beta_true, b.mean_theta), abs=1e-12)
     assert 0.0 < m["cosine_similarity"] <= 1.0 + 1e-12  # non-negative θ's
     assert m["policy_regret"] >= 0.0
+    mine = return_regret(run.mdp, run.theta_true, b.mean_theta)
+    assert m["return_regret"] == pytest.approx(mine, abs=1e-12)
+    assert m["return_regret"] >= 0.0
 
 
 def test_belief_is_the_posterior_of_the_demonstrations(run):

@@ -37,7 +37,7 @@ from ..hypotheses import (
 from ..inference.belief import DiscreteBelief
 from ..inference.identifiability import absent_features
 from ..mdp import TabularMDP
-from ..metrics import cosine_similarity, expertise_distance, policy_regret
+from ..metrics import cosine_similarity, expertise_distance, policy_regret, return_regret
 from ..models import DEFAULT_MODEL
 from ..worlds.grid import DEFAULT_GOAL_REWARD_MODE
 from ..worlds.zones import ZoneMap, generate_map, resolve_map
@@ -149,6 +149,7 @@ def run_demo(
         "expertise_distance": expertise_distance(beta_true, post.mean_beta),
         "cosine_similarity": cosine_similarity(theta_true, post.mean_theta),
         "policy_regret": policy_regret(mdp, theta_true, beta_true, post.mean_theta, model=model),
+        "return_regret": return_regret(mdp, theta_true, post.mean_theta),
     }
     return DemoRun(zone_map, mdp, hyp, theta_true, beta_true, trajs, post, metrics, model=model,
                    max_steps=DEFAULT_MAX_STEPS)
