@@ -193,6 +193,17 @@ def _z(x: np.ndarray, expected: float, variance: float, n_batches: int = 25) -> 
     return (x[x.size - n:].mean() - expected) / se
 
 
+def _z_scores(checks: dict, p: np.ndarray) -> dict[str, float]:
+    """``_z`` of each check ``name: (values along the chain, values on the lattice)`` against the
+    exact lattice posterior ``p``."""
+    z = {}
+    for name, (chain, values) in checks.items():
+        chain, values = chain.astype(float), values.astype(float)
+        mean = p @ values
+        z[name] = _z(chain, mean, p @ values**2 - mean**2)
+    return z
+
+
 def _flat(theta, beta):
     return 0.0
 
@@ -232,11 +243,7 @@ def test_chain_matches_exact_posterior(tiny, variant, moves, prior):
         checks[f"P(beta={b})"] = (np.isclose(kb, b), np.isclose(betas, b))
     for k, level in itertools.product(range(3), (0.0, 0.5)):
         checks[f"P(theta_{k}={level})"] = (np.isclose(kt[:, k], level), np.isclose(thetas[:, k], level))
-    z = {}
-    for name, (chain, values) in checks.items():
-        chain, values = chain.astype(float), values.astype(float)
-        mean = p @ values
-        z[name] = _z(chain, mean, p @ values**2 - mean**2)
+    z = _z_scores(checks, p)
     assert max(abs(v) for v in z.values()) < 5, z
     assert 0 < res.acceptance_rate < 1
 
@@ -409,11 +416,7 @@ def test_a_log_spaced_beta_lattice_matches_its_exact_posterior(tiny, prior):
     checks["E[beta]"] = (res.kept_beta, betas)
     for b in (0.2, 0.4, 0.8):
         checks[f"P(beta={b})"] = (np.isclose(res.kept_beta, b), np.isclose(betas, b))
-    z = {}
-    for name, (chain, values) in checks.items():
-        chain, values = chain.astype(float), values.astype(float)
-        mean = p @ values
-        z[name] = _z(chain, mean, p @ values**2 - mean**2)
+    z = _z_scores(checks, p)
     assert max(abs(v) for v in z.values()) < 5, z
 
 
@@ -440,11 +443,9 @@ def test_chains_run_until_they_agree_and_pool_to_the_exact_posterior(tiny):
     thetas, betas, p = _exact_posterior(mdp, trajs, "simplex", _log_uniform)
     kt = r.theta[:, r.n_burn:].reshape(-1, 3)
     kb = r.beta[:, r.n_burn:].reshape(-1)
-    z = {}
-    for name, chain, values in [*((f"E[theta_{k}]", kt[:, k], thetas[:, k]) for k in range(3)),
-                                ("E[beta]", kb, betas)]:
-        mean = p @ values
-        z[name] = _z(chain, mean, p @ values**2 - mean**2)
+    checks = {f"E[theta_{k}]": (kt[:, k], thetas[:, k]) for k in range(3)}
+    checks["E[beta]"] = (kb, betas)
+    z = _z_scores(checks, p)
     assert max(abs(v) for v in z.values()) < 5, z
     np.testing.assert_allclose(r.mean_theta, kt.mean(axis=0))
 

@@ -206,10 +206,18 @@ class _Pool:
 
     def log_weights(self, n_features: int, betas: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """log prior weights of the active θ and of ``betas`` (default: the active β), unnormalised."""
-        lt = np.array([-(n_features - 1) * self.theta_level[i] * math.log(2) for i in self.active_t])
+        lt = np.array([self.log_theta_weight(i, n_features) for i in self.active_t])
         order = self.active_b if betas is None else betas
-        lb = np.array([-self.beta_level[j] * math.log(2) for j in order])
+        lb = np.array([self.log_beta_weight(j) for j in order])
         return lt, lb
+
+    def log_theta_weight(self, i: int, n_features: int) -> float:
+        """θ ``i``'s log cell weight: 2^-(K−1) per halving of its spacing."""
+        return -(n_features - 1) * self.theta_level[i] * math.log(2)
+
+    def log_beta_weight(self, j: int) -> float:
+        """β ``j``'s log cell weight: 1/2 per halving of its spacing (in log β)."""
+        return -self.beta_level[j] * math.log(2)
 
     def missing(self) -> list[tuple[int, int]]:
         return [(i, j) for i in self.active_t for j in self.active_b if (i, j) not in self.ll]
@@ -520,8 +528,8 @@ def _solve_missing(pool: _Pool, tasks: _Tasks, solve_kwargs: dict, progress: Cal
 
 
 def _log_prior_of(pool: _Pool, pairs: list[tuple[int, int]], K: int) -> np.ndarray:
-    """Each pair's log prior weight (its cells; :meth:`_Pool.log_weights`' formula)."""
-    return np.array([-((K - 1) * pool.theta_level[i] + pool.beta_level[j]) * math.log(2) for i, j in pairs])
+    """Each pair's log prior weight: its θ's and its β's cells (:meth:`_Pool.log_weights`)."""
+    return np.array([pool.log_theta_weight(i, K) + pool.log_beta_weight(j) for i, j in pairs])
 
 
 def _best_known(pool: _Pool, K: int) -> float:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..numerics import enable_float64
-from .birl import VARIANTS, _check_args
+from .birl import _check_args
 from .birl_kernel import ChainState, LatticePosterior, draw_moves, initial_state, make_lattice, sample_chain
 from .priors import DEFAULT_PRIOR, get_prior, log_prior_numpy
 
@@ -98,8 +98,6 @@ def birl_chains(mdp, trajs, *, chains: int = 4, n_iter: int = 1000, rhat_below: 
         raise InputError(f"rhat_below must be a number > 1, got {rhat_below!r}")
     rng = _check_args(mdp, trajs, n_iter, delta, beta_step, theta_max, beta_range, lam, variant, moves,
                       None, burn_in, rng, tol, beta_ratio)
-    if variant not in VARIANTS:  # pragma: no cover (checked above)
-        raise InputError(f"variant must be one of {VARIANTS}")
     get_prior(prior)
     rng_range = (float(beta_range[0]), float(beta_range[1]))
     moves = moves or ("both" if variant == "box" else "either")

@@ -166,7 +166,7 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     if final < screen and keep.size:
         m = keep.size  # padded with the last survivor to a bucket's size: few shapes to compile
         padded = np.concatenate([keep, np.repeat(keep[-1:], bucket_size(m) - m)])
-        second = [tuple(x[:m] for x in o) for o in stage(padded, final, [v for v in values])]
+        second = [tuple(x[:m] for x in o) for o in stage(padded, final, values)]
         ll, err = ll.copy(), err.copy()
         ll[keep] = sum(o[2] for o in second)
         err[keep] = sum(o[3] for o in second)

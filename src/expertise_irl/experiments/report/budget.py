@@ -39,7 +39,7 @@ def _diagnostics(rows, method: str) -> str:
     if method == JUDGED:
         return f"1 chain × {int(sub['birl_iterations'].max()) if 'birl_iterations' in sub else 1000:,} it."
     rhat = sub["max_rhat"].to_numpy(dtype=float)
-    med = float(np.nanmedian(rhat)) if np.isfinite(rhat).any() or np.isinf(rhat).any() else float("nan")
+    med = float(np.nanmedian(rhat)) if (~np.isnan(rhat)).any() else float("nan")
     shown = "∞ (a chain never moved)" if med == float("inf") else fmt(med)
     return (f"{int(sub['birl_chains'].max())} chains × {int(np.median(sub['birl_iterations'])):,} it. "
             f"(median); R-hat < 1.01 in {np.mean(rhat < 1.01):.0%}, median R-hat {shown}")
