@@ -12,7 +12,7 @@ from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
 from expertise_irl.inference.task_likelihood import pair_counts
 from expertise_irl.mdp import TabularMDP
-from expertise_irl.models import MODELS
+from expertise_irl.models import BACKUP_MODELS, MODELS, check_model
 from expertise_irl.planning.differentiable import make_log_likelihood
 from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.zones import load_bundled
@@ -33,7 +33,7 @@ def crossroads():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", BACKUP_MODELS)
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_solve_matches_reference(model, seed):
     """Values, Q and log-policies within 1e-8 (scaled units) of the slow reference, every β at once."""
@@ -133,7 +133,7 @@ def test_boltzmann_solves_each_theta_once(crossroads):
         np.testing.assert_allclose(v, np.broadcast_to(v[0], v.shape), atol=1e-7 * np.abs(v).max())
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", BACKUP_MODELS)
 def test_gradient_matches_finite_differences(model, crossroads):
     rng = np.random.default_rng(3)
     theta0 = np.array([0.4, 0.3, 0.1, 0.1, 0.1])
@@ -151,7 +151,7 @@ def test_gradient_matches_finite_differences(model, crossroads):
     assert float(g_beta) == pytest.approx(fd_b, rel=1e-5, abs=1e-6)
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", BACKUP_MODELS)
 def test_likelihood_equals_the_batched_solver(model, crossroads):
     """The differentiable path and the lane pool share one backup: same log-likelihood."""
     trajs = simulate(crossroads, np.array([0.6, 0.1, 0.1, 0.1, 0.1]), 0.3, 4, np.random.default_rng(1),
@@ -167,7 +167,7 @@ def test_likelihood_equals_the_batched_solver(model, crossroads):
     assert float(ll_warm) == pytest.approx(batch, abs=1e-7)
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", BACKUP_MODELS)
 def test_simulator_uses_the_models_policy(model, crossroads):
     theta, beta = np.array([0.4, 0.3, 0.1, 0.1, 0.1]), 1.0
     lp = solve(crossroads, theta, beta, model=model).log_policy[0]
@@ -188,6 +188,22 @@ def test_unknown_model_is_refused(crossroads):
         solve(crossroads, np.ones(5) / 5, 1.0, model="softmax")
     with pytest.raises(InputError, match="model must be one of"):
         make_log_likelihood(crossroads, np.zeros((crossroads.n_states, crossroads.n_actions)), model="x")
+
+
+def test_pedagogical_is_a_model_that_no_solver_takes(crossroads):
+    """Known (check_model with solvable=False), but every solver path refuses it in one line naming the
+    field, before any work: it has no backup of its own."""
+    assert set(MODELS) - set(BACKUP_MODELS) == {"pedagogical"}
+    assert check_model("pedagogical", solvable=False) == "pedagogical"
+    with pytest.raises(InputError, match="^model pedagogical has no Bellman backup"):
+        solve(crossroads, np.ones(5) / 5, 1.0, model="pedagogical")
+    with pytest.raises(InputError, match="^model pedagogical has no Bellman backup"):
+        make_log_likelihood(crossroads, np.zeros((crossroads.n_states, crossroads.n_actions)),
+                            model="pedagogical")
+    with pytest.raises(InputError, match="^model pedagogical has no Bellman backup"):
+        simulate(crossroads, np.ones(5) / 5, 1.0, 1, 0, model="pedagogical")
+    with pytest.raises(InputError, match="^models pedagogical"):
+        check_model("pedagogical", "models")
 
 
 def test_a_solve_that_does_not_converge_is_nan_not_wrong(crossroads):

@@ -18,27 +18,56 @@ likelihood (:mod:`expertise_irl.planning.differentiable`) and the simulator all 
 - ``boltzmann``: the noisy-rational model, ``π(a|s) ∝ exp(Q*(s,a)/β)`` with ``Q*`` the
   hard (β = 0) optimal values of ``θ·φ``: ``v = max_a q``, ``π = softmax_a q``. Hard
   values are homogeneous in the reward, so one solve per θ serves every β.
+- ``pedagogical``: a demonstrator who may be teaching (:mod:`expertise_irl.inference.pedagogical`):
+  ``maxent``'s policy reweighted by what each action would tell a literal observer of a fixed
+  hypothesis set, ``π_show ∝ π_{θ,β} · exp(λ/β · I_θ)``, with the teaching weight λ ≥ 0 inferred
+  (λ = 0 is ``maxent``). It has no Bellman backup of its own (the values are the doer's), so it is
+  not in :data:`BACKUP_MODELS`: no solver takes it; the discrete method solves the set under
+  ``maxent`` once and reweights.
 """
 
 from __future__ import annotations
 
-MODELS = ("maxent", "maxent-relative", "boltzmann")
+#: The models with a Bellman backup (:func:`backup`): those a solver takes.
+BACKUP_MODELS = ("maxent", "maxent-relative", "boltzmann")
+#: The teaching model: ``maxent`` reweighted by a literal observer of a fixed hypothesis set.
+PEDAGOGICAL = "pedagogical"
+#: Every observation model.
+MODELS = (*BACKUP_MODELS, PEDAGOGICAL)
 DEFAULT_MODEL = "maxent"
 
 
-def check_model(model: str, field: str = "model") -> str:
-    """``model`` if it is known, else an :class:`~expertise_irl.options.OptionError` naming
-    ``field`` and the choices."""
-    from .options import one_of
+def check_model(model: str, field: str = "model", *, solvable: bool = True) -> str:
+    """``model`` if it is known (with ``solvable``, the default, one a solver takes: one of
+    :data:`BACKUP_MODELS`).
 
-    return one_of(model, MODELS, field)
+    Args:
+        model: the model's name.
+        field: the option's name, in the message.
+        solvable: refuse :data:`PEDAGOGICAL`, which has no Bellman backup of its own.
+
+    Returns:
+        ``model``.
+
+    Raises:
+        OptionError: naming ``field``: an unknown model (with the choices), or ``pedagogical``
+            where a model is solved.
+    """
+    from .options import OptionError, one_of
+
+    if solvable and model == PEDAGOGICAL:
+        raise OptionError(f"{{{field}}} pedagogical has no Bellman backup of its own (a teacher's policy is "
+                          "maxent's reweighted by what a literal observer of a fixed hypothesis set would "
+                          "learn): it is inferred on a discrete set (method discrete) and simulated with a "
+                          "teaching weight, not solved; use " + ", ".join(BACKUP_MODELS) + " here", field)
+    return one_of(model, MODELS if not solvable else BACKUP_MODELS, field)
 
 
 def backup(model: str, q, log_n_actions, axis: int = 0):
     """One backup of scaled Q-values ``q`` (``-inf`` where an action is unavailable).
 
     Args:
-        model: one of :data:`MODELS` (a static Python string inside ``jit``).
+        model: one of :data:`BACKUP_MODELS` (a static Python string inside ``jit``).
         q: scaled Q-values with the actions along ``axis``.
         log_n_actions: ``log |A(s)|``, shaped like ``q`` without ``axis`` (used by
             ``maxent-relative`` only).
@@ -60,5 +89,6 @@ def backup(model: str, q, log_n_actions, axis: int = 0):
     elif model == "boltzmann":
         v = m
     else:
+        check_model(model)  # pedagogical (no backup) or an unknown name: an OptionError naming model
         raise ValueError(f"unknown model {model!r}")
     return v, log_pi
