@@ -151,8 +151,8 @@ def test_the_budget_ablation_adds_a_method_per_budget_and_a_verdict_column_each(
     and the report judges Algorithm 1's claims once per budget."""
     from expertise_irl.experiments.report import build_report
 
-    cfg = dataclasses.replace(SMOKE, methods=("discrete",), birl_budgets=("40", "rhat"), birl_chains=2,
-                              birl_max_iterations=1000)
+    cfg = dataclasses.replace(SMOKE, methods=("discrete",), birl_budgets=("40", "rhat", "40:log"),
+                              birl_chains=2, birl_max_iterations=1000)
     out = tmp_path / "ablation"
     summary = run(STUDY, out, scale="smoke", seed=0, workers=1, config=cfg)
     assert summary.failed == 0
@@ -165,13 +165,30 @@ def test_the_budget_ablation_adds_a_method_per_budget_and_a_verdict_column_each(
     assert (rows.loc[rows.method == "discrete", ["birl_iterations", "birl_chains"]] == 0).all().all()
     md = build_report(out).read_text()
     table = pd.read_csv(out / "report" / "tables" / "budget_ablation.csv").set_index("claim")
-    assert {"birl_box@40", "birl_box@rhat"} <= set(table.columns) and "VII-D" in table.index
+    assert {"birl_box@40", "birl_box@rhat", "birl_box@40:log"} <= set(table.columns)
+    assert "VII-D" in table.index
+    assert (rows[rows.method == "birl_box@40:log"].birl_iterations == 40).all()
     assert "## Algorithm 1's budget" in md
 
 
 def test_bad_budgets_are_refused():
     with pytest.raises(InputError, match="birl_budgets entries"):
         OptimisationConfig(birl_budgets=("many",))
+    with pytest.raises(InputError, match="birl_budgets entries"):
+        OptimisationConfig(birl_budgets=("5000:lin",))
+    with pytest.raises(InputError, match="birl_beta_ratio must be > 1"):
+        OptimisationConfig(birl_budgets=("5000:log",), birl_beta_ratio=1.0)
+
+
+def test_a_log_budget_runs_the_same_chains_on_the_log_spaced_beta_lattice():
+    from expertise_irl.experiments.studies.optimisation import budget_options
+
+    cfg = OptimisationConfig(birl_budgets=("5000", "rhat", "5000:log", "rhat:log"), birl_beta_ratio=1.1)
+    assert cfg.budget_methods == ("birl_box@5000", "birl_box@rhat", "birl_box@5000:log", "birl_box@rhat:log")
+    assert budget_options(cfg, "5000") == {"n_iter": 5000}
+    assert budget_options(cfg, "5000:log") == {"n_iter": 5000, "beta_ratio": 1.1}
+    assert budget_options(cfg, "rhat:log") == {**budget_options(cfg, "rhat"), "beta_ratio": 1.1}
+    assert "beta_ratio" not in budget_options(cfg, "rhat")
     with pytest.raises(InputError, match=r"birl_chains must be at least 1 \(2 with"):
         OptimisationConfig(birl_budgets=("rhat",), birl_chains=1)
 

@@ -22,10 +22,16 @@ PREFIX = f"{JUDGED}@"
 
 
 def budget_methods(rows) -> list[str]:
-    """The ablation's methods present in ``rows``, in increasing budget (``rhat`` last)."""
+    """The ablation's methods present in ``rows``: the additive β lattice's first, then the log-spaced
+    one's (``:log``), each in increasing budget (``rhat`` last)."""
     names = {m for m in rows["method"].unique() if str(m).startswith(PREFIX)}
-    return sorted(names, key=lambda m: (m.endswith("@rhat"), int(m[len(PREFIX):]) if m[len(PREFIX):].isdigit()
-                                        else 0))
+
+    def key(m: str):
+        budget = m[len(PREFIX):]
+        base = budget.removesuffix(":log")
+        return budget.endswith(":log"), base == "rhat", int(base) if base.isdigit() else 0
+
+    return sorted(names, key=key)
 
 
 def _as_judged(rows, method: str):
@@ -70,7 +76,9 @@ def budget_section(rows, e: int, shared: str | None) -> Section | None:
             f"instances, episode counts and discrete rows): `{JUDGED}` is one chain of the paper's 1,000 "
             "iterations, the study as printed; `" + "`, `".join(extra) + "` are independent chains pooled, "
             "for that many iterations each or (`@rhat`) until their split R-hat over β and θ/‖θ‖₁ is below "
-            "the config's `birl_rhat`. The first row gives each budget's chains and the R-hat they reached.")
+            "the config's `birl_rhat`; a budget ending in `:log` runs on the log-spaced β lattice (each step "
+            "multiplying β by the config's `birl_beta_ratio`). The first row gives each budget's chains and "
+            "the R-hat they reached.")
     table = Table("budget_ablation", "Algorithm 1's budget: a verdict per budget", "Verdict (our number) of "
                   "each claim that judges Algorithm 1, per budget.", data, data)
     return Section("Algorithm 1's budget", text, table)

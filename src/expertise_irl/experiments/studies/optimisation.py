@@ -109,11 +109,14 @@ class OptimisationConfig:
     goal_bonus: float = 10.0  # what entering the goal pays (in `length` when scaled, outside θ·φ when fixed)
     # Algorithm 1's budget ablation: each entry adds a method `birl_box@<entry>`, `birl_chains` chains
     # of the box variant pooled, run for that many iterations each, or ("rhat") until their split
-    # R-hat is below `birl_rhat` (checked every 1,000 iterations, at most `birl_max_iterations`)
+    # R-hat is below `birl_rhat` (checked every 1,000 iterations, at most `birl_max_iterations`); an
+    # entry ending in ":log" (e.g. "5000:log") runs the same on a log-spaced β lattice, each step
+    # multiplying β by `birl_beta_ratio` (ours; the paper's steps add 0.1)
     birl_budgets: tuple[str, ...] = ()
     birl_chains: int = 4
     birl_rhat: float = 1.01
     birl_max_iterations: int = 20_000
+    birl_beta_ratio: float = 1.072  # 100 values from 0.01 to 10, as many as the additive lattice
 
     def __post_init__(self) -> None:
         from ...inference.priors import get_prior
@@ -130,10 +133,14 @@ class OptimisationConfig:
             raise InputError("birl_iterations, map_starts and nuts_chains must be at least 1")
         object.__setattr__(self, "birl_budgets", tuple(str(b) for b in self.birl_budgets))
         for b in self.birl_budgets:
-            if b != "rhat" and not (b.isdigit() and int(b) >= 1):
+            base = budget_iterations(b)
+            if base != "rhat" and not (base.isdigit() and int(base) >= 1):
                 raise InputError(f"birl_budgets entries must be a number of iterations or \"rhat\", "
-                             f"got {b!r}")
-        if self.birl_chains < (2 if "rhat" in self.birl_budgets else 1):
+                                 f"either followed by \":log\" or not, got {b!r}")
+        if not self.birl_beta_ratio > 1:
+            raise InputError(f"birl_beta_ratio must be > 1, got {self.birl_beta_ratio:g}")
+        uses_rhat = any(budget_iterations(b) == "rhat" for b in self.birl_budgets)
+        if self.birl_chains < (2 if uses_rhat else 1):
             raise InputError(f"birl_chains must be at least 1 (2 with \"rhat\"), got {self.birl_chains}")
         if not self.birl_rhat > 1 or self.birl_max_iterations < 1000:
             raise InputError("birl_rhat must be > 1 and birl_max_iterations at least 1000")
@@ -226,7 +233,8 @@ def estimate_s(cfg: OptimisationConfig, i: int) -> float:
     per = {"discrete": 0.1 + states * 3e-4, "birl_box": alg1, "birl_simplex": alg1,
            "map": 0.5 + states * 2.7e-3,
            "nuts": 2.0 + states * 5.2e-5 * cfg.nuts_chains * (cfg.nuts_warmup + cfg.nuts_samples)}
-    budgets = sum(cfg.birl_max_iterations if b == "rhat" else int(b) for b in cfg.birl_budgets)
+    budgets = sum(cfg.birl_max_iterations if budget_iterations(b) == "rhat" else int(budget_iterations(b))
+                  for b in cfg.birl_budgets)
     return 2.0 + sum(per[m] * (1 if m == "discrete" else n) for m in cfg.methods
                      if m != "nuts" or cfg.runs_nuts(i)) + states * 8.7e-6 * budgets * cfg.birl_chains * n
 
@@ -326,15 +334,33 @@ def run_task(cfg: OptimisationConfig, seed: int, params: dict) -> tuple[dict[str
     return _rows(cfg, seed, zm, mdp, inst, hyp, results), {}
 
 
+#: A ``birl_budgets`` entry ending in it runs on the log-spaced β lattice (``birl_beta_ratio``).
+LOG_SUFFIX = ":log"
+
+
+def budget_iterations(budget: str) -> str:
+    """A ``birl_budgets`` entry without its ``:log`` suffix: a number of iterations or ``rhat``."""
+    return budget.removesuffix(LOG_SUFFIX)
+
+
+def budget_options(cfg: OptimisationConfig, budget: str) -> dict:
+    """:func:`~expertise_irl.inference.birl_chains.birl_chains`' options for a ``birl_budgets`` entry."""
+    base = budget_iterations(budget)
+    kw = ({"rhat_below": cfg.birl_rhat, "max_iter": cfg.birl_max_iterations, "block": 1000}
+          if base == "rhat" else {"n_iter": int(base)})
+    if budget.endswith(LOG_SUFFIX):
+        kw["beta_ratio"] = cfg.birl_beta_ratio
+    return kw
+
+
 def _budget_runs(cfg, mdp, trajs, seeds, common) -> dict[str, tuple]:
     """The budget ablation's methods (:attr:`OptimisationConfig.budget_methods`): a warm-up and a
     run per episode count, each ``birl_chains`` chains of the box variant pooled."""
     from ...inference.birl_chains import birl_chains
 
     def fit(tr, budget: str, rng):
-        kw = ({"rhat_below": cfg.birl_rhat, "max_iter": cfg.birl_max_iterations, "block": 1000}
-              if budget == "rhat" else {"n_iter": int(budget)})
-        return birl_chains(mdp, tr, chains=cfg.birl_chains, rng=rng, variant="box", **kw, **common)
+        return birl_chains(mdp, tr, chains=cfg.birl_chains, rng=rng, variant="box",
+                           **budget_options(cfg, budget), **common)
 
     def run(budget: str, b: int):
         def one(n: int):
