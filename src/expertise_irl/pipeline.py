@@ -17,6 +17,14 @@ discrete set is chosen; ``note`` hears the prior of a continuous method), the me
 describes its posterior, the settings record the inputs with their digests, the seed, the map's
 goal reward and γ and the method's options, and the misspecification checks
 (:mod:`.inference.misspecification`) add their verdict and warnings.
+
+With ``model="pedagogical"`` (discrete only) the result also holds ``teaching``: the verdict (teaching,
+doing or undecided), λ̂ with its interval and the ``maxent`` reading of the same set. The predictive
+checks then judge the teaching model itself: their replicates are simulated from draws of (θ, β, λ)
+of its joint posterior with each draw's teacher policy
+(:func:`~.inference.methods.teaching_draws`). The named set is not refitted for a *too coarse* verdict
+(the observer's set is fixed before the data), and ``check="full"`` is refused: its per-state
+reward is fitted under a model with a Bellman backup, which the teaching model has not.
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from .demos.trajectories import Trajectories
 from .errors import InputError
 from .inference.methods import Method, MethodRun, Note, Progress, document, get_method
 from .mdp import TabularMDP
+from .models import PEDAGOGICAL
 from .options import DEFAULT_CHECK, DEFAULT_METHOD
 from .result import Result
 from .results import discrete_result as _discrete_document
@@ -201,18 +210,34 @@ class Prepared:
         Returns:
             The result; its ``timing`` holds the seconds of the inference and of the checks.
         """
-        from .inference.misspecification import add_to_result, posterior_of_run, refit_of_run
+        from .inference.misspecification import add_to_result
 
         mdp, trajs = self.world.mdp, self.demos.trajectories
         run = self.method.run(mdp, trajs, self.options, self.seed, progress=progress, setup=self.setup)
         doc = self.document(run)
         t0 = time.perf_counter()
-        add_to_result(doc, [(mdp, trajs)], posterior_of_run(run, mdp), check=self.check,
-                      model=run.settings["model"], seed=self.seed,
-                      refit=refit_of_run(run, mdp, trajs, self.options))
+        if self.check != "off":
+            posterior, refit = self._checked_posterior(run)
+            add_to_result(doc, [(mdp, trajs)], posterior, check=self.check, model=run.settings["model"],
+                          seed=self.seed, refit=refit)
         result = Result.from_json(doc)
         return result.replace(timing={"inference_s": float(run.fields["run_time_s"]),
                                       "checks_s": time.perf_counter() - t0})
+
+    def _checked_posterior(self, run: MethodRun) -> tuple[dict[str, Any], Any]:
+        """The posterior the misspecification checks judge and the refit of a named set (None: none):
+        the teaching model's draws and no refit for ``pedagogical`` (see the module docstring)."""
+        from .inference.misspecification import posterior_of_run, refit_of_run
+
+        mdp, trajs = self.world.mdp, self.demos.trajectories
+        if getattr(run.result, "teaching", None) is None:
+            return posterior_of_run(run, mdp), refit_of_run(run, mdp, trajs, self.options)
+        import numpy as np
+
+        from .inference.methods import teaching_draws
+        from .inference.predictive_checks import MAX_DRAWS
+
+        return teaching_draws(run.result, MAX_DRAWS, np.random.default_rng([self.seed, 48])), None
 
     def settings(self) -> dict[str, Any]:
         """The settings every result of this inference starts with (the method's options follow)."""
@@ -272,10 +297,29 @@ def prepare(world: Any, demos: Any, method: str = DEFAULT_METHOD, *, options: An
         options = chosen.options_from(values)
     elif values:
         raise OptionError("give the options either as {options} or by field, not both", "options")
+    refuse_check(options, check)
     w = as_world(world)
     d = as_demos(demos, w)
     setup = chosen.setup(w.mdp, options, seed, note)
     return Prepared(chosen, options, w, d, seed, check, setup, command)
+
+
+def refuse_check(options: Any, check: str) -> None:
+    """Refuse ``check="full"`` for the ``pedagogical`` model (see the module docstring).
+
+    Args:
+        options: a method's options.
+        check: the misspecification checks asked for.
+
+    Raises:
+        OptionError: naming ``check`` and ``model``.
+    """
+    from .options import OptionError
+
+    if check == "full" and getattr(options, "model", None) == PEDAGOGICAL:
+        raise OptionError("{check} full fits a per-state reward under a model with a Bellman backup, which "
+                          "{model} pedagogical has not: use {check} fast (posterior predictive checks under "
+                          "the teaching model) or off", "check", "model")
 
 
 def infer(world: Any, demos: Any, method: str = DEFAULT_METHOD, *, options: Any = None, seed: int = 0,

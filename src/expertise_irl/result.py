@@ -14,6 +14,7 @@ A :class:`Result` is what :func:`expertise_irl.infer` returns and what ``infer``
 - :class:`Diagnostics` (warnings, statistics that could not be computed, the
   :class:`Misspecification` verdict, the identifiability of the features);
 - :class:`ChangingExpertise` (``--expertise changing``: the learning curve and its evidence),
+  :class:`Teaching` (``--model pedagogical``: teaching or doing, and the teaching weight λ),
   :class:`Refinement` (an adaptive set's record), :class:`Settings` (what was asked);
 - ``data`` (what was read) and ``extra``: what a command adds beside the inference (``demo``'s
   truth and metrics, ``study``'s per-task counts, ``live``'s start log), carried as it is.
@@ -459,6 +460,69 @@ class ChangingExpertise:
 
 
 @dataclass(frozen=True)
+class Teaching:
+    """``--model pedagogical``: does the demonstrator teach or do the task? (JSON ``teaching``, written by
+    :meth:`~expertise_irl.inference.pedagogical.TeachingPosterior.record`).
+
+    Attributes:
+        verdict: ``teaching``, ``doing`` or ``undecided`` (from 2 log BF).
+        reading: the verdict in words, with β under the teaching model and under ``maxent``.
+        log_bayes_factor: log P(Ξ | λ > 0) − log P(Ξ | λ = 0) (None when not finite).
+        p_teaching: P(λ > 0 | Ξ).
+        lambda_hat: E[λ | Ξ].
+        lambda_interval: λ's 90% credible interval (grid quantiles).
+        lambda_map: the most probable λ of the grid.
+        lambdas: the grid of λ (0 first).
+        lambda_prior: its prior (half on λ = 0).
+        lambda_probabilities: its posterior.
+        beta_hat_maxent: β̂ at λ = 0 (the ``maxent`` posterior on the same set).
+        theta_hat_maxent: θ̂ at λ = 0.
+        details: entries the package does not interpret, in the order written.
+    """
+
+    verdict: str
+    reading: str
+    log_bayes_factor: float | None
+    p_teaching: float
+    lambda_hat: float
+    lambda_interval: tuple[float, float]
+    lambda_map: float
+    lambdas: tuple[float, ...]
+    lambda_prior: tuple[float, ...]
+    lambda_probabilities: tuple[float, ...]
+    beta_hat_maxent: float
+    theta_hat_maxent: tuple[float, ...]
+    details: Mapping[str, Any] = field(default_factory=_empty)
+
+    def to_json(self) -> dict[str, Any]:
+        """The record as a JSON object (plain values)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "details"}
+        out.update({k: list(v) for k, v in out.items() if isinstance(v, tuple)})
+        return {**out, **thaw(self.details)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Teaching:
+        """The record in ``doc``, as :meth:`to_json` wrote it.
+
+        Args:
+            doc: the JSON object.
+
+        Returns:
+            The record.
+        """
+        lo, hi = doc["lambda_interval"]
+        return cls(str(doc["verdict"]), str(doc["reading"]), _opt_float(doc["log_bayes_factor"]),
+                   float(doc["p_teaching"]), float(doc["lambda_hat"]), (float(lo), float(hi)),
+                   float(doc["lambda_map"]), _floats(doc["lambdas"]), _floats(doc["lambda_prior"]),
+                   _floats(doc["lambda_probabilities"]), float(doc["beta_hat_maxent"]),
+                   _floats(doc["theta_hat_maxent"]),
+                   freeze({k: v for k, v in doc.items() if k not in _TEACHING_FIELDS}))
+
+
+_TEACHING_FIELDS = frozenset(f for f in Teaching.__dataclass_fields__ if f != "details")
+
+
+@dataclass(frozen=True)
 class Refinement:
     """An adaptive set's record (:mod:`~expertise_irl.inference.adaptive`).
 
@@ -574,7 +638,7 @@ _KNOWN = frozenset({
     "group_probabilities", "entropy", "log_evidence", "n_impossible", "marginals", "hypotheses", "trace",
     "theta_hat_normalized", "beta_hat_normalized", "credible_intervals", "samples", "diagnostics",
     "data", "settings", "refinement", "expertise_by_episode", "changing", "trend", "theta_hat_changing",
-    "expertise_trace", "run_time_s",
+    "expertise_trace", "run_time_s", "teaching",
 })
 
 
@@ -592,6 +656,7 @@ class Result:
             as ``demo``'s).
         changing: the learning curve (``--expertise changing``), else None.
         refinement: the adaptive set's record, else None.
+        teaching: teaching or doing, and the teaching weight (``--model pedagogical``), else None.
         settings: what was asked.
         data: what was read (episodes, actions, ...).
         run_time_s: the inference's seconds (None when not timed).
@@ -611,6 +676,7 @@ class Result:
     diagnostics: Diagnostics | None = field(default_factory=Diagnostics)
     changing: ChangingExpertise | None = None
     refinement: Refinement | None = None
+    teaching: Teaching | None = None
     settings: Settings = field(default_factory=Settings)
     data: Mapping[str, Any] = field(default_factory=_empty)
     run_time_s: float | None = None
@@ -721,6 +787,8 @@ class Result:
                 doc["trend"] = thaw(c.trend)
             if c.theta_hat is not None:
                 doc["theta_hat_changing"] = list(c.theta_hat)
+        if self.teaching is not None:
+            doc["teaching"] = self.teaching.to_json()
         if self.run_time_s is not None:
             doc["run_time_s"] = self.run_time_s
         doc.update(thaw(self.extra))
@@ -769,6 +837,7 @@ class Result:
                 raise InputError(f"{source}: 'samples' must hold chain, beta and theta "
                                  f"({len(doc['feature_names'])} per draw) of equal length") from None
         changing = ChangingExpertise.from_json(doc) if "expertise_by_episode" in doc else None
+        teaching, known = _teaching_of(doc, source)
         diag = doc.get("diagnostics")
         return cls(
             method=str(doc["method"]), feature_names=tuple(doc["feature_names"]), estimate=estimate,
@@ -777,10 +846,24 @@ class Result:
             changing=changing,
             refinement=Refinement.from_json(doc["refinement"]) if isinstance(doc.get("refinement"), Mapping)
             else None,
+            teaching=teaching,
             settings=Settings(freeze(doc.get("settings") or {})), data=freeze(doc.get("data") or {}),
             run_time_s=_opt_float(doc.get("run_time_s")), version=str(doc.get("version", "")),
-            extra=freeze({k: v for k, v in doc.items() if k not in _KNOWN}),
+            extra=freeze({k: v for k, v in doc.items() if k not in known}),
             schema=int(doc.get("schema", 1)))
+
+
+def _teaching_of(doc: Mapping[str, Any], source: Any) -> tuple[Teaching | None, frozenset[str]]:
+    """The document's ``teaching`` record (None without one) and the top-level keys read into typed
+    parts (a ``teaching`` that is not an object stays in ``extra``, as before it had a type)."""
+    rec = doc.get("teaching")
+    if not isinstance(rec, Mapping):
+        return None, _KNOWN - {"teaching"}
+    try:
+        return Teaching.from_json(rec), _KNOWN
+    except (KeyError, TypeError, ValueError):
+        raise InputError(f"{source}: 'teaching' must hold the verdict, its reading and the λ grid's "
+                         "prior and posterior (written by --model pedagogical)") from None
 
 
 def check_document(doc: Any, source: Any = "result") -> None:

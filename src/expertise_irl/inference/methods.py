@@ -32,7 +32,7 @@ from typing import Any, NamedTuple, Protocol, TypeVar
 import numpy as np
 
 from ..errors import InputError
-from ..models import DEFAULT_MODEL, MODELS
+from ..models import DEFAULT_MODEL, MODELS, PEDAGOGICAL
 from ..options import (
     ADAPTIVE,
     DEFAULT_BETAS,
@@ -67,6 +67,10 @@ def _one_of(field: str, value: str, choices) -> None:
 
 def _check_prior_and_model(prior: str, model: str) -> None:
     _one_of("prior", prior, PRIORS)
+    if model == PEDAGOGICAL:
+        raise OptionError("{model} pedagogical needs a discrete observer set (the literal observer's "
+                          "hypothesis set is fixed before the data, and the teaching weight's posterior is "
+                          "exact over it): use {method} discrete", "model", "method")
     _one_of("model", model, MODELS)
 
 
@@ -81,6 +85,34 @@ def _check_concentration(prior: str, concentration: float | None) -> None:
 
 def _check_expertise(value: str) -> None:
     choose(Expertise, value, "expertise")
+
+
+def _check_teaching(opts: DiscreteOptions) -> None:
+    """The discrete method's model, and what the pedagogical model takes and refuses."""
+    from .pedagogical import parse_lambdas
+
+    _one_of("model", opts.model, MODELS)
+    if opts.model != PEDAGOGICAL:
+        if opts.lambdas is not None:
+            raise OptionError("{lambdas} is the teaching weight's grid of {model} pedagogical, not of "
+                              f"{{model}} {opts.model}", "lambdas", "model")
+        return
+    if opts.lambdas is not None:
+        try:
+            parse_lambdas(opts.lambdas)
+        except InputError as e:
+            raise OptionError("{lambdas}" + str(e).removeprefix("--lambdas"), "lambdas") from None
+    if opts.refine:
+        raise OptionError("{refine} cannot be used with {model} pedagogical: the literal observer's "
+                          "hypothesis set is fixed before the data, and refining it where the posterior has "
+                          "its mass would change the observer with the data", "refine", "model")
+    if opts.per_action:
+        raise OptionError("{per_action} is not built for {model} pedagogical: its posterior over the "
+                          "teaching weight is computed from the demonstrations' pair counts as a whole, "
+                          "not traced action by action", "per_action", "model")
+    if opts.expertise == Expertise.CHANGING:
+        raise OptionError("{expertise} changing is not built for {model} pedagogical: the teaching "
+                          "model has one β and one teaching weight λ for every episode", "expertise", "model")
 
 
 @dataclass(frozen=True)
@@ -98,6 +130,7 @@ class DiscreteOptions:
     refine: bool | None = None  # refine the set (inference.adaptive); None: when no set is named
     max_hypotheses: int = 20_000  # refinement's cap on hypotheses solved
     max_seconds: float | None = None  # refinement's time cap: no round starts after it
+    lambdas: str | None = None  # model pedagogical: the teaching weight's grid (None: pedagogical.LAMBDAS)
 
     def __post_init__(self) -> None:
         if self.tol is not None and not (0 < self.tol <= MAX_TOL):
@@ -112,6 +145,7 @@ class DiscreteOptions:
             raise OptionError("{refine} follows the one-β posterior and cannot be used with {expertise} "
                               "changing, whose β grid must span every episode's β (name it with {betas})",
                               "refine", "expertise", "betas")
+        _check_teaching(self)
 
     max_draws = 0
 
@@ -124,7 +158,10 @@ class DiscreteOptions:
     def refines(self) -> bool:
         """Whether the set is refined: as asked, else exactly when no set is named and β is one for
         every episode (the refinement follows the one-β posterior, while a changing β's grid must
-        span every episode's β)."""
+        span every episode's β). Never for the ``pedagogical`` model, whose observer's set is fixed
+        before the data."""
+        if self.model == PEDAGOGICAL:
+            return False
         if self.refine is None:
             return not self.named and self.expertise == Expertise.STATIONARY
         return self.refine
@@ -234,6 +271,7 @@ class DiscreteFit(NamedTuple):
     changing: Any = None  # --expertise changing: (ChangingPosterior, episode labels)
     refined: Any = None  # the refined set's record and warnings (inference.adaptive.Refined)
     certified: Any = None  # a fixed set's certified solve (inference.certified.Certified.record())
+    teaching: Any = None  # model pedagogical: the posterior over Ψ × Λ (pedagogical.TeachingPosterior)
 
     @property
     def result(self) -> DiscreteFit:
@@ -258,6 +296,8 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
     from .belief import DiscreteBelief
 
     hyp = _setup_discrete(mdp, opts, seed) if setup is None else setup
+    if opts.model == PEDAGOGICAL:
+        return _fit_teaching(mdp, trajs, hyp, opts, progress)
     refined = certified = None
     if opts.refines:
         refined = refined_set(mdp, trajs, hyp, opts, progress)
@@ -292,6 +332,52 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
             live = filtered_by_action(step_ll, index, hyp)
         changing = (cp, list(trajs.episode_ids), live)
     return DiscreteFit(post, trace, (trajs.episode, trajs.step), changing, refined, certified)
+
+
+def _fit_teaching(mdp, trajs, hyp, opts: DiscreteOptions, progress: Progress = None) -> DiscreteFit:
+    """The pedagogical model: one ``maxent`` solve of the fixed set to one tolerance (every hypothesis
+    is part of the observer, so none is screened out), then the exact posterior over Ψ × Λ. The fit's
+    posterior is λ's marginal; its ``teaching`` holds the whole."""
+    from ..planning.soft_vi import DEFAULT_TOL
+    from .belief import DiscreteBelief
+    from .pedagogical import LAMBDAS, teaching_posterior
+
+    start = DiscreteBelief.from_mdp(mdp, hyp, tol=opts.tol or DEFAULT_TOL, chunk_size=opts.chunk_size,
+                                    model="maxent", progress=progress)
+    tp = teaching_posterior(start.log_policy, hyp, trajs, lambdas=opts.lambdas or LAMBDAS)
+    return DiscreteFit(tp.belief(start.log_policy), None, (trajs.episode, trajs.step), teaching=tp)
+
+
+def teaching_draws(fit: DiscreteFit, n: int, rng: np.random.Generator) -> dict[str, Any]:
+    """``n`` independent draws of (θ, β, λ) from a pedagogical fit's joint posterior, each with its
+    teacher's policy on every state, as the misspecification checks take a posterior
+    (:func:`~.misspecification.misspecification`'s ``theta``, ``beta``, ``weights``, ``tables``).
+
+    The teacher's policy is the literal observer's (the set with its prior, on every state) reweighting
+    of the draw's ``maxent`` policy, so the posterior predictive checks judge the teaching model itself.
+
+    Args:
+        fit: the discrete method's fit with ``teaching``.
+        n: the number of draws.
+        rng: draws them.
+
+    Returns:
+        ``theta [n, K]``, ``beta [n]``, ``weights`` None (equally weighted draws), ``tables``
+        (``[[n, S, A]]``) and ``draws_note``.
+    """
+    from .pedagogical import observer, teaching_log_policy
+    from .posterior import log_sum_exp
+
+    tp, lp = fit.teaching, np.asarray(fit.posterior.log_policy)
+    hyp = tp.hypotheses
+    joint = tp.log_likelihood + tp.log_prior[None, :] + tp.log_prior_lambda[:, None]  # [L, H]
+    p = np.exp(joint - log_sum_exp(joint)).ravel()
+    li, hi = np.divmod(rng.choice(p.size, size=n, p=p / p.sum()), len(hyp))
+    info = observer(hyp, lp, tp.log_prior).informativeness()  # [n_theta, S, A]
+    tables = teaching_log_policy(lp[hi], info[hi // hyp.n_beta], tp.lambdas[li] / hyp.beta[hi])
+    return {"theta": hyp.theta[hi], "beta": hyp.beta[hi], "weights": None, "tables": [tables],
+            "draws_note": f"{n} draws of (θ, β, λ) from the teaching model's posterior, each replicate "
+                          "simulated with its draw's teacher policy"}
 
 
 def refined_set(mdp, trajs, start, opts: DiscreteOptions, progress: Progress = None):
@@ -365,6 +451,8 @@ def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[s
     from .diagnostics import discrete_warnings
 
     out: dict[str, Any] = {"diagnostics": {"warnings": discrete_warnings(fit.posterior, names)}}
+    if fit.teaching is not None:  # beside beta_hat, which is the teaching model's (λ marginalised)
+        out["teaching"] = fit.teaching.record(fit.posterior.log_policy)
     if fit.refined is not None:
         out["refinement"] = fit.refined.record
         out["diagnostics"]["warnings"] = fit.refined.warnings + out["diagnostics"]["warnings"]
@@ -485,12 +573,22 @@ def _discrete_settings(fit: DiscreteFit, opts: DiscreteOptions) -> dict[str, Any
             "max_seconds": opts.max_seconds,
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp),
             "prior": fit.refined.record["prior"] if refined else "uniform",
-            "model": opts.model, "per_action": opts.per_action, "tol": _tol_used(fit, opts),
+            "model": opts.model, **_teaching_settings(fit), "per_action": opts.per_action,
+            "tol": _tol_used(fit, opts),
             **_certified_settings(fit), "expertise": opts.expertise,
             **({"epsilons": list(fit.changing[0].epsilons.tolist()),
                 "epsilon_prior": "P(ε = 0) = 1/2, the rest uniform over ε > 0",
                 "chain": "β_1 uniform; stay 1 − ε, else a neighbouring grid value (ε/2 each side)"}
                if fit.changing is not None else {})}
+
+
+def _teaching_settings(fit: DiscreteFit) -> dict[str, Any]:
+    """The pedagogical model's λ grid, its prior and the observer (nothing for another model)."""
+    if fit.teaching is None:
+        return {}
+    return {"lambdas": fit.teaching.lambdas.tolist(),
+            "lambda_prior": "P(λ = 0) = 1/2, the rest uniform over the grid's λ > 0",
+            "observer": "literal: maxent over this hypothesis set with its prior"}
 
 
 def _tol_used(fit: DiscreteFit, opts: DiscreteOptions) -> float | None:
