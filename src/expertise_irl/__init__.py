@@ -21,7 +21,8 @@ del version, PackageNotFoundError
 #: public name -> module that defines it (relative to this package)
 _EXPORTS = {
     "Trajectories": ".demos.trajectories", "read_demos_csv": ".demos.csv_io",
-    "simulate": ".demos.simulation", "write_demos_csv": ".demos.csv_io",
+    "simulate": ".demos.simulation", "simulate_teacher": ".demos.simulation",
+    "write_demos_csv": ".demos.csv_io",
     "ArgumentError": ".errors", "ConvergenceError": ".errors", "ExpertiseIRLError": ".errors",
     "InputError": ".errors",
     "BETA_PRESETS": ".hypotheses", "THETA_PRESETS": ".hypotheses", "HypothesisSet": ".hypotheses",
@@ -80,6 +81,7 @@ __all__ = [
     "read_demos_csv",
     "read_result",
     "simulate",
+    "simulate_teacher",
     "solve",
     "theta_grid",
     "write_demos_csv",
@@ -102,7 +104,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
     from .demos.csv_io import read_demos_csv, write_demos_csv
-    from .demos.simulation import simulate
+    from .demos.simulation import simulate, simulate_teacher
     from .demos.trajectories import Trajectories
     from .errors import ArgumentError, ConvergenceError, ExpertiseIRLError, InputError
     from .hypotheses import BETA_PRESETS, THETA_PRESETS, HypothesisSet, expertise_group, theta_grid

@@ -156,46 +156,103 @@ def simulate(
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Episode length cap (actions).")] = 500,
     model: ModelOption = "maxent",
+    lam: Annotated[float | None, typer.Option(
+        "--lambda", help="--model pedagogical: the teaching weight λ >= 0 (reward units per nat of the "
+        "observer's belief about θ; default 0, a doer who does not teach).", show_default=False)] = None,
+    observer_thetas: Annotated[str | None, typer.Option(
+        help="--model pedagogical: the literal observer's Θ, as infer's --thetas (default paper-real).",
+        show_default=False)] = None,
+    observer_betas: Annotated[str | None, typer.Option(
+        help="--model pedagogical: the literal observer's B, as infer's --betas (default paper-sim).",
+        show_default=False)] = None,
     goal_reward: GoalRewardOption = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output if it exists.")] = False,
 ) -> None:
     """Simulate a person with preferences θ* and expertise β*; write demonstrations CSV.
 
-    The person acts by --model (default maxent, the paper's). Episodes that run to --max-steps
-    without reaching a goal are counted on stderr. More than 100,000 episodes are simulated and
-    written in batches of 100,000, with a size estimate first and a progress bar; the CSV appears
-    at --out only once complete (Ctrl-C or SIGTERM leave nothing there).
+    The person acts by --model (default maxent, the paper's). With --model pedagogical the person
+    teaches a literal observer who believes in the set --observer-thetas × --observer-betas: each
+    action's maxent probability is reweighted by exp(λ/β* · what the action tells the observer
+    about θ*), λ from --lambda (0: a doer). Episodes that run to --max-steps without reaching a goal
+    are counted on stderr. More than 100,000 episodes are simulated and written in batches of
+    100,000, with a size estimate first and a progress bar; the CSV appears at --out only once
+    complete (Ctrl-C or SIGTERM leave nothing there).
     """
     from ..demos.csv_io import demos_csv_stream, stream_format
     from ..demos.simulation import BATCH_EPISODES, capped_episodes, simulate_batches
+    from ..models import check_model
     from ..results import check_writable
 
     check_writable(out_path, force=force, inputs=[*_map_files(map_spec), mdp_path])
     mdp, _ = _load_mdp(map_spec, mdp_path, goal_reward)
     th = _parse_theta(theta, mdp.n_features, mdp.feature_names, fixed_reward=mdp.has_offset)
     _check_beta(beta)
-    _check_model(model)
+    check_model(model, solvable=False)
+    teacher = _teacher_options(mdp, model, lam, observer_thetas, observer_betas)
+    lp = None if teacher is None else _teacher_policy(mdp, th, beta, *teacher[:2])
     big = episodes > BATCH_EPISODES
     fmt = stream_format(mdp) if big else "auto"  # (one batch: the format its episodes allow)
     if big:
-        _size_estimate(out_path, mdp, th, beta, episodes, seed, max_steps, model, fmt)
+        _size_estimate(out_path, mdp, th, beta, episodes, seed, max_steps, model, fmt, lp)
     n_actions = n_capped = 0
     with demos_csv_stream(out_path, mdp, fmt=fmt) as write, _progress("episodes") as bar:
         task = bar.add_task("simulating", total=episodes) if big else None
         for trajs in simulate_batches(mdp, th, beta, episodes, np.random.default_rng(seed),
-                                      max_steps=max_steps, model=model):
+                                      max_steps=max_steps, model=model if lp is None else "maxent",
+                                      log_policy=lp):
             write(trajs)
             n_actions += len(trajs)
             n_capped += capped_episodes(trajs, mdp, max_steps)
             if task is not None:
                 bar.update(task, advance=trajs.n_episodes)
+    how = f"model {model}" if teacher is None else \
+        f"model {model}, λ={teacher[0]:g}, observer {teacher[2]}: {len(teacher[1])} hypotheses"
     _say(f"wrote {out_path}: {plural(episodes, 'episode')}, {plural(n_actions, 'action')} "
-         f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, model {model})")
+         f"(θ*={np.round(th, 4).tolist()}, β*={beta:g}, {how})")
     _say_capped(n_capped, episodes, max_steps, model)
 
 
+def _teacher_options(mdp, model: str, lam: float | None, thetas: str | None, betas: str | None):
+    """``(λ, observer's set, the set in words)`` of a pedagogical teacher; None for another model,
+    which takes none of --lambda, --observer-thetas, --observer-betas."""
+    import math
+
+    from ..hypotheses import HypothesisSet, resolve_betas, resolve_thetas
+    from ..models import PEDAGOGICAL
+    from ..options import DEFAULT_BETAS, DEFAULT_THETAS
+
+    if model != PEDAGOGICAL:
+        for flag_, value in (("--lambda", lam), ("--observer-thetas", thetas), ("--observer-betas", betas)):
+            if value is not None:
+                raise InputError(f"{flag_} applies only to --model pedagogical, not to --model {model}")
+        return None
+    lam = 0.0 if lam is None else float(lam)
+    if not (math.isfinite(lam) and lam >= 0):
+        raise InputError(f"--lambda must be a finite number >= 0, got {lam:g}")
+    try:
+        th = resolve_thetas(thetas or DEFAULT_THETAS, mdp.n_features)
+    except InputError as e:
+        raise InputError(str(e).replace("--thetas", "--observer-thetas", 1)) from None
+    try:
+        b = resolve_betas(betas or DEFAULT_BETAS)
+    except InputError as e:
+        raise InputError(str(e).replace("--betas", "--observer-betas", 1)) from None
+    return lam, HypothesisSet(th, b), f"{thetas or DEFAULT_THETAS} Θ × {betas or DEFAULT_BETAS} B"
+
+
+def _teacher_policy(mdp, theta, beta: float, lam: float, hypotheses) -> np.ndarray:
+    """``[S, A]`` log-policy of the teacher (θ, β, λ) before the literal observer of ``hypotheses``
+    (one maxent solve of the set, with a progress bar)."""
+    from ..inference.pedagogical import solved_observer, teacher_log_policy
+
+    prepare_solver()
+    with _progress() as bar:
+        obs = solved_observer(mdp, hypotheses, progress=_solve_progress(bar, "solving the observer's set"))
+    return teacher_log_policy(mdp, theta, beta, lam, obs)
+
+
 def _size_estimate(out_path: Path, mdp, theta, beta: float, episodes: int, seed: int, max_steps: int,
-                   model: str, fmt: str) -> None:
+                   model: str, fmt: str, log_policy=None) -> None:
     """A note of the CSV's expected size and actions, from 1,000 trial episodes (their own random
     stream: the run's episodes are not changed by it); a warning when the folder has less room."""
     import shutil
@@ -204,7 +261,7 @@ def _size_estimate(out_path: Path, mdp, theta, beta: float, episodes: int, seed:
     from ..demos.simulation import simulate as simulate_episodes
 
     trial = simulate_episodes(mdp, theta, beta, 1000, np.random.default_rng([seed, 1]), max_steps=max_steps,
-                              model=model)
+                              model=model if log_policy is None else "maxent", log_policy=log_policy)
     size = csv_bytes(trial, mdp, fmt) * episodes / trial.n_episodes
     actions = len(trial) * episodes / trial.n_episodes
     _note(f"{episodes:,} episodes: about {_bytes(size)} and {actions:,.0f} actions to write to {out_path} "
@@ -266,6 +323,10 @@ def infer(
         help="discrete (hypothesis set, Eq. 13), birl (Algorithm 1), map (L-BFGS on the simplex) "
         "or nuts (full posterior).")] = "discrete",
     model: ModelOption = "maxent",
+    lambdas: Annotated[str | None, typer.Option(
+        help="discrete with --model pedagogical: the teaching weight's grid, comma-separated, 0 (a doer) "
+        "among them (default 0,0.003,0.01,0.03,0.1,0.3,1); its prior puts half the mass on 0.",
+        show_default=False)] = None,
     expertise: Annotated[str, typer.Option(
         help="discrete: stationary (one β for every episode, the paper's) or changing (a β per "
         "episode, a sticky chain on the β grid: the learning curve, its Bayes factor against "
@@ -306,7 +367,7 @@ def infer(
     """
     from ..inference.methods import get_method
     from ..inference.misspecification import check_level
-    from ..pipeline import as_demos, prepare
+    from ..pipeline import as_demos, prepare, refuse_check
     from ..results import INLINE_DRAWS, check_writable, samples_path_for, write_result
 
     chosen = get_method(method)
@@ -316,6 +377,7 @@ def infer(
     check_writable(out_path, force=force, inputs=inputs)
     opts = chosen.options_from(ctx.params)
     _refuse_caps_without_refinement(ctx, opts)
+    refuse_check(opts, check)
     world = _world(map_spec, mdp_path, goal_reward)
     data = as_demos(demos, world)
     prepare_solver(measure=chosen.measure_lanes)  # the others solve one hypothesis at a time
@@ -367,6 +429,10 @@ def _report_result(result: Result, out_path: Path, n_actions: int, check_s: floa
         else:
             _say(f"learning curve: log β_e = log β_0 + λ·{tr['g']}, β̂_0 = {tr['beta0']:.3g}, λ̂ = "
                  f"{tr['slope']:.3g} (β̂ by episode {curve[0]['mean']:.3g} → {curve[-1]['mean']:.3g})")
+    if result.teaching is not None:
+        t = result.teaching
+        lo, hi = t.lambda_interval
+        _say(f"teaching: {t.reading}; λ̂ = {t.lambda_hat:.3g}, 90% credible interval [{lo:.3g}, {hi:.3g}]")
     mis = result.misspecification
     if mis:
         _say(f"check ({mis.check}): {mis.verdict} ({mis.reason})")
@@ -396,13 +462,15 @@ def _refuse_caps_without_refinement(ctx: typer.Context, opts) -> None:
     they would do nothing, so they are refused rather than ignored."""
     if getattr(opts, "refines", True):
         return
+    fixed = getattr(opts, "model", None) == "pedagogical"
+    why = ("--model pedagogical, whose set is fixed before the data): leave it out" if fixed else
+           "a named set, --no-refine or --expertise changing): leave it out, or add --refine")
     for name in ("max_seconds", "max_hypotheses"):
         source = ctx.get_parameter_source(name)
         if source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP"):
             flag = "--" + name.replace("_", "-")
             raise InputError(f"{flag} caps the refinement of the hypothesis set, and this set is not "
-                             "refined (a named set, --no-refine or --expertise changing): leave it out, or "
-                             "add --refine")
+                             f"refined ({why}")
 
 
 @app.command()

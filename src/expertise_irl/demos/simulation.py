@@ -1,5 +1,7 @@
-"""A simulated person: episodes drawn from the policy of one hypothesis (θ, β) on an MDP; how each
-episode ended (:func:`episode_outcomes`) and, for those cut at the step cap, why (:func:`cap_note`)."""
+"""A simulated person: episodes drawn from the policy of one hypothesis (θ, β) on an MDP
+(:func:`simulate`), or of a teacher who shows it to a literal observer (:func:`simulate_teacher`);
+how each episode ended (:func:`episode_outcomes`) and, for those cut at the step cap, why
+(:func:`cap_note`)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,9 @@ from ..planning.soft_vi import solve
 from .trajectories import Trajectories
 
 DEFAULT_MAX_STEPS = 500
+
+__all__ = ["BATCH_EPISODES", "DEFAULT_MAX_STEPS", "best_move", "cap_note", "capped_episodes", "capped_flags",
+           "check_start_states", "episode_outcomes", "simulate", "simulate_batches", "simulate_teacher"]
 
 
 def _check_hypothesis(mdp: TabularMDP, theta, beta) -> tuple[np.ndarray, float]:
@@ -119,18 +124,59 @@ def simulate(
     return _walk(mdp, _policy_cdf(lp), st, int(n_episodes), int(max_steps), rng)
 
 
+def simulate_teacher(mdp: TabularMDP, theta, beta, lam: float, n_episodes: int,
+                     rng: np.random.Generator | int, *, observer, starts=None,
+                     max_steps: int = DEFAULT_MAX_STEPS) -> Trajectories:
+    """Episodes of a teacher (θ, β, λ) showing the task to a literal observer (``--model pedagogical``).
+
+    The teacher acts by :func:`~expertise_irl.inference.pedagogical.teacher_log_policy`: the ``maxent``
+    policy of (θ, β) reweighted by ``exp(λ/β · I_θ)``, I_θ what each action tells the observer about θ;
+    λ = 0 is a doer (:func:`simulate` under ``maxent``, episode for episode with the same ``rng``).
+
+    Args:
+        mdp: the task.
+        theta: ``[K]`` reward weights, finite and ``>= 0`` (need not be in the observer's set).
+        beta: expertise (temperature), ``> 0``.
+        lam: the teaching weight λ ``>= 0`` (reward units per nat of the observer's belief).
+        n_episodes: number of episodes N (``>= 0``).
+        rng: source of all randomness; an int is used as a seed.
+        observer: the literal observer on every state of ``mdp``
+            (:func:`~expertise_irl.inference.pedagogical.solved_observer`), or the
+            :class:`~expertise_irl.hypotheses.HypothesisSet` it believes in (solved here).
+        starts: as :func:`simulate`'s.
+        max_steps: as :func:`simulate`'s.
+
+    Returns:
+        ``[n]`` pairs; episodes labelled ``0..N-1``, steps ``0..T-1`` within each.
+
+    Raises:
+        InputError: bad θ, β, λ, ``starts``, ``max_steps`` or ``n_episodes``, or an observer of
+            another task.
+    """
+    from ..hypotheses import HypothesisSet
+    from ..inference.pedagogical import solved_observer, teacher_log_policy
+
+    th, b = _check_hypothesis(mdp, theta, beta)
+    if isinstance(observer, HypothesisSet):
+        observer = solved_observer(mdp, observer)
+    lp = teacher_log_policy(mdp, th, b, float(lam), observer)
+    return simulate(mdp, th, b, n_episodes, rng, starts=starts, max_steps=max_steps, log_policy=lp)
+
+
 #: :func:`simulate_batches` walks at most this many episodes at once.
 BATCH_EPISODES = 100_000
 
 
 def simulate_batches(mdp: TabularMDP, theta, beta, n_episodes: int, rng: np.random.Generator | int, *,
                      max_steps: int = DEFAULT_MAX_STEPS, model: str = DEFAULT_MODEL,
-                     batch: int = BATCH_EPISODES) -> Iterator[Trajectories]:
+                     batch: int = BATCH_EPISODES,
+                     log_policy: np.ndarray | None = None) -> Iterator[Trajectories]:
     """:func:`simulate`'s episodes in batches of at most ``batch`` (memory stays bounded however many
-    are asked for), episodes numbered on across batches. The policy is solved once and ``rng`` runs
-    on from batch to batch; with ``n_episodes <= batch`` the one batch is exactly :func:`simulate`'s
-    output for the same ``rng`` state."""
-    cdf = _policy_cdf(_policy(mdp, theta, beta, None, model))
+    are asked for), episodes numbered on across batches. The policy is solved once (or ``log_policy``
+    is used, as :func:`simulate`'s) and ``rng`` runs on from batch to batch; with
+    ``n_episodes <= batch`` the one batch is exactly :func:`simulate`'s output for the same ``rng``
+    state."""
+    cdf = _policy_cdf(_policy(mdp, theta, beta, log_policy, model))
     st = check_start_states(mdp, None)
     rng = _check_counts(n_episodes, max_steps, rng)
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
