@@ -14,7 +14,7 @@ from expertise_irl.demos.simulation import simulate
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, theta_grid
 from expertise_irl.inference.belief import DiscreteBelief
 from expertise_irl.inference.evidence import compare_models, split_episodes
-from expertise_irl.models import MODELS
+from expertise_irl.models import BACKUP_MODELS
 from expertise_irl.worlds.zones import load_bundled, parse_map
 
 SMALL = "S...\n.#..\n...G\n"
@@ -30,7 +30,7 @@ def hyp(small):
     return HypothesisSet(theta_grid([0, 0.5, 1], small.n_features)[:6], [0.1, 1.0, 5.0])
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("model", BACKUP_MODELS)
 def test_log_evidence_equals_a_brute_force_sum(model, small, hyp):
     trajs = simulate(small, np.array([0.6, 0.1, 0.1, 0.1, 0.1]), 0.5, 6, np.random.default_rng(0),
                      model=model, max_steps=40)
@@ -75,7 +75,7 @@ def test_the_generating_model_has_the_most_evidence(truth_model):
     hyp = HypothesisSet(thetas, BETA_PRESETS["paper-sim"])
     truth = thetas[7]
     trajs = simulate(mdp, truth, 1.0, 40, np.random.default_rng(3), model=truth_model, max_steps=150)
-    cmp = compare_models(mdp, trajs, hyp, list(MODELS))
+    cmp = compare_models(mdp, trajs, hyp, list(BACKUP_MODELS))
     assert cmp.best.model == truth_model
     others = [f for f in cmp.fits if f.model != truth_model]
     assert all(f.log_bayes_factor < -5 for f in others), [(f.model, f.log_bayes_factor) for f in others]
@@ -89,7 +89,7 @@ def test_compare_models_command(tmp_path):
     result = invoke("compare-models", "corridor", "--demos", demos, "--thetas", "0,1", "--out", out)
     ok(result)
     doc = json.loads(out.read_text(encoding="utf-8"))
-    assert [m["model"] for m in doc["models"]] == list(MODELS)
+    assert [m["model"] for m in doc["models"]] == list(BACKUP_MODELS)
     best = max(doc["models"], key=lambda m: m["log_evidence"])
     assert doc["best"] == best["model"] and best["log_bayes_factor"] == 0.0
     for m in doc["models"]:
