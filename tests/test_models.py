@@ -195,14 +195,14 @@ def test_pedagogical_is_a_model_that_no_solver_takes(crossroads):
     field, before any work: it has no backup of its own."""
     assert set(MODELS) - set(BACKUP_MODELS) == {"pedagogical"}
     assert check_model("pedagogical", solvable=False) == "pedagogical"
-    with pytest.raises(InputError, match="^model pedagogical has no Bellman backup"):
+    with pytest.raises(InputError, match=r"^model pedagogical has no Bellman backup"):
         solve(crossroads, np.ones(5) / 5, 1.0, model="pedagogical")
-    with pytest.raises(InputError, match="^model pedagogical has no Bellman backup"):
+    with pytest.raises(InputError, match=r"^model pedagogical has no Bellman backup"):
         make_log_likelihood(crossroads, np.zeros((crossroads.n_states, crossroads.n_actions)),
                             model="pedagogical")
-    with pytest.raises(InputError, match="^model pedagogical has no Bellman backup"):
+    with pytest.raises(InputError, match=r"^model pedagogical has no Bellman backup"):
         simulate(crossroads, np.ones(5) / 5, 1.0, 1, 0, model="pedagogical")
-    with pytest.raises(InputError, match="^models pedagogical"):
+    with pytest.raises(InputError, match=r"^models pedagogical"):
         check_model("pedagogical", "models")
 
 
