@@ -130,6 +130,7 @@ def test_drive_an_episode_in_chromium(server, tmp_path):
         assert page.locator("#theta-bars .track").count() == 5
         assert page.locator("#group-bars .track").count() == 3
         assert "The robot chose" in page.locator("#start").inner_text()
+        assert page.locator("#teaching-line").is_hidden()  # maxent: no teaching reading
         x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
         start = int(index[y, x])
         actions = path_to_goal(mdp, start)
@@ -196,6 +197,38 @@ def test_changing_expertise_shows_this_episodes_beta_in_chromium(tmp_path):
             shown.append(page.locator("#beta-now").inner_text())
         assert all(re.match(r"[\d.e+-]+ \(90%: .+–.+, episode 0\)", t) for t in shown), shown
         assert len(set(shown)) > 1, shown
+        assert not errors, errors
+
+
+@pytest.mark.slow
+def test_the_teaching_model_reads_teaching_or_doing_in_chromium(tmp_path):
+    """``live --model pedagogical``: the page reads the demonstrations as teaching, doing or undecided
+    after every action, and at the goal its reading is the one result.json records."""
+    import json
+
+    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright is not installed")
+    map_path, out = tmp_path / "room.txt", tmp_path / "rec"
+    map_path.write_text(MAP)
+    mdp = parse_map(MAP, name=str(map_path)).to_mdp()
+    index = parse_map(MAP).state_index()
+    expect = sync_api.expect
+    with serving(map_path, out, "--model", "pedagogical") as url, live_page(sync_api, url) as (page, errors):
+        expect(page.locator("#teaching-line")).to_be_visible()
+        assert page.locator("#teaching").inner_text().startswith("the demonstrations do not tell teaching")
+        x, y = map(int, re.findall(r"-?\d+", page.locator("#position").get_attribute("data-value")))
+        actions = path_to_goal(mdp, int(index[y, x]))
+        shown = []
+        for i, a in enumerate(actions):
+            page.keyboard.press(KEYS[ACTION_NAMES[a]][i % 2])
+            expect(page.locator("#actions")).to_have_attribute("data-value", str(i + 1), timeout=30_000)
+            shown.append(page.locator("#teaching").inner_text())
+        line = re.compile(r"\(2 log BF = -?[\d.]+\).*; λ̂ = [\d.e+-]+ \(90%: .+–.+\)$")
+        assert all(line.search(t) for t in shown), shown
+        assert len(set(shown)) > 1, shown
+        expect(page.locator("#episodes-done")).to_have_attribute("data-value", "1")
+        record = json.loads((out / "result.json").read_text())["teaching"]
+        assert shown[-1].startswith(record["reading"] + "; ")
+        assert page.locator("#teaching").get_attribute("data-verdict") == record["verdict"]
         assert not errors, errors
 
 

@@ -31,6 +31,12 @@ BETAS_HELP = "B: a preset (paper-sim, paper-real) or comma-separated temperature
 REFINE_HELP = ("Refine the hypothesis set where the posterior's mass is (β log-spaced, θ on the simplex) "
                "until β̂, E[θ] and the 90% intervals settle, as infer does. Default: refine when no set "
                "is named; --no-refine alone is the paper-real Θ × paper-sim B set.")
+LIVE_MODEL_HELP = ("maxent: the person does the task (the paper's model, the default); pedagogical: the "
+                   "person may be teaching (docs/teaching.md): the estimate is the teaching model's over a "
+                   "fixed set (no --refine; default paper-real Θ × paper-sim B), and the page reads the "
+                   "demonstrations as teaching, doing or undecided.")
+LAMBDAS_HELP = ("--model pedagogical: the grid of teaching weights λ (comma-separated numbers >= 0, 0 among "
+                "them). Default: 0,0.003,0.01,0.03,0.1,0.3,1.")
 RefineOption = Annotated[bool | None, typer.Option("--refine/--no-refine", help=REFINE_HELP,
                                                    show_default=False)]
 
@@ -50,6 +56,15 @@ def _set_settings(opts, hyp) -> dict:
     return {"thetas": opts.thetas or (ADAPTIVE if opts.refines else DEFAULT_THETAS.value),
             "betas": opts.betas or (ADAPTIVE if opts.refines else DEFAULT_BETAS.value), "hypotheses": kind,
             "n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp), "prior": "uniform"}
+
+
+def _teaching_settings(model: str, lambdas: str | None) -> dict:
+    """The teaching model's entries of the settings (its λ grid), empty for maxent."""
+    from ..inference.pedagogical import LAMBDAS, parse_lambdas
+
+    if model != "pedagogical":
+        return {}
+    return {"lambdas": parse_lambdas(LAMBDAS if lambdas is None else lambdas).tolist()}
 
 
 @app.command()
@@ -73,29 +88,34 @@ def live(
     expertise: Annotated[str, typer.Option(
         help="changing: also show the β of the episode being driven, filtered from the actions so far "
         "(a β per episode, docs/changing-expertise.md); stationary: one β (the default).")] = "stationary",
+    model: Annotated[str, typer.Option("--model", help=LIVE_MODEL_HELP)] = "maxent",
+    lambdas: Annotated[str | None, typer.Option(help=LAMBDAS_HELP, show_default=False)] = None,
 ) -> None:
     """Serve a local page where a person drives on the map and the estimate updates after every action.
 
     Drive with the arrow keys or WASD (or the on-screen buttons). After each episode (it ends
     at a goal) the robot picks the next start: the one whose episode is expected to tell the
     most about θ and β, or a random one (a toggle on the page). With no set named, the set
-    starts coarse and is refined from every finished episode after each one. Stop with Ctrl-C;
-    run again with the same --out to continue.
+    starts coarse and is refined from every finished episode after each one. With --model
+    pedagogical the set is fixed and the page also says whether the demonstrations read as
+    teaching. Stop with Ctrl-C; run again with the same --out to continue.
     """
     from ..live.server import bind, is_loopback, serve
-    from ..live.session import check_out_dir, open_session
+    from ..live.session import check_live_model, check_out_dir, open_session
     from ..options import Expertise, choose
     from ..results import map_digest
 
     choose(Expertise, expertise, "expertise")
+    check_live_model(model, refine=refine or None, expertise=expertise, lambdas=lambdas)
+    teaching = _teaching_settings(model, lambdas)
     zone_map = load_map(map_spec, goal_reward)
     mdp = zone_map.to_mdp()
-    opts = _options(thetas, betas, refine, expertise)
+    opts = _options(thetas, betas, False if teaching else refine, expertise)
     hyp = opts.hypotheses(mdp.n_features)
     settings = {"command": "live", "method": "discrete", "mdp": str(map_spec),
                 "mdp_digest": map_digest(zone_map), "goal_bonus": zone_map.goal_bonus,
                 "goal_reward_mode": zone_map.goal_reward_mode, **_set_settings(opts, hyp),
-                "gamma": mdp.gamma, "seed": seed}
+                "gamma": mdp.gamma, "seed": seed, "model": model, **teaching}
     check_out_dir(zone_map, out_dir, settings)  # before the solve: a bad DIR fails at once
     if not is_loopback(host):
         _warn(f"--host {host}: the page is reachable from other machines; anyone who can reach it can "
@@ -109,7 +129,8 @@ def live(
         with _progress() as bar:
             session = open_session(zone_map, hyp, out_dir, settings=settings, seed=seed,
                                    progress=_solve_progress(bar, "solving soft value iteration"),
-                                   expertise=expertise, refine=opts if opts.refines else None)
+                                   expertise=expertise, refine=opts if opts.refines else None,
+                                   model=model, lambdas=teaching.get("lambdas"))
     except BaseException:
         sock.close()
         raise
@@ -120,6 +141,8 @@ def live(
 
     def ready(url: str) -> None:
         size = f"{len(est.hypotheses)} hypotheses" + (", refined after each episode" if opts.refines else "")
+        if teaching:
+            size += f", teaching model over {len(teaching['lambdas'])} values of λ"
         _say(f"live page: {url}  ({size} on {zone_map.name}; recording to {out_dir}; Ctrl-C to stop)")
         import sys
 

@@ -20,6 +20,17 @@ episode (:func:`~expertise_irl.inference.methods.refined_set`, from the start se
 action replayed: the belief is the exact posterior over that set. The server runs the refinement
 in its worker thread right after telling the page that the goal was reached
 (:meth:`LiveSession.handle` with ``defer``, then :meth:`LiveSession.finish_episode`).
+
+With ``model="pedagogical"`` (``live --model pedagogical``) the demonstrator may be teaching: the
+set is fixed (the literal observer's set is fixed before the data, so it is never refined), and the
+estimate after every action is the teaching model's exact posterior over the set with λ
+marginalised (:class:`~expertise_irl.inference.teaching_online.TeachingOnlineEstimator`, one
+``maxent`` solve of the set for every λ). Each state message carries the teaching reading
+(``teaching``: the verdict, λ̂ and its interval) and ``result.json`` the result's ``teaching``
+entry. The active start choice stays on the doer's policies: it simulates episodes under
+hypotheses drawn from the λ-marginal belief over Ψ, acting as doers, and scores a start by how
+much such an episode, read as a doer's, is expected to lower that belief's entropy; it does not
+model a teacher's detours.
 """
 
 from __future__ import annotations
@@ -36,7 +47,9 @@ from ..errors import InputError, os_reason, plural
 from ..hypotheses import HypothesisSet
 from ..inference.active import expected_information_gain
 from ..inference.online import OnlineEstimator
+from ..inference.teaching_online import TeachingOnlineEstimator
 from ..mdp import ACTION_NAMES
+from ..models import DEFAULT_MODEL, PEDAGOGICAL
 from ..result import Result
 from ..worlds.maps import Map
 from ..worlds.warehouse import HEADING_LETTERS, WarehouseMap
@@ -44,6 +57,10 @@ from ..worlds.warehouse import HEADING_LETTERS, WarehouseMap
 DEMOS_NAME = "demos.csv"
 RESULT_NAME = "result.json"
 MODES = ("active", "random")
+#: The observation models the live page runs (``maxent``: a doer; ``pedagogical``: a doer or a teacher).
+LIVE_MODELS = (DEFAULT_MODEL, PEDAGOGICAL)
+#: The keys of the teaching record that each state message carries (``--model pedagogical``).
+TEACHING_SHOWN = ("verdict", "reading", "log_bayes_factor", "p_teaching", "lambda_hat", "lambda_interval")
 #: Accepted keys of each client message type (anything else is refused).
 MESSAGES: dict[str, tuple[str, ...]] = {
     "move": ("type", "action"),
@@ -100,6 +117,11 @@ class LiveSession:
     @property
     def mdp(self):
         return self.estimator.mdp
+
+    @property
+    def teaching(self) -> bool:
+        """Whether the estimate is the teaching model's (``--model pedagogical``)."""
+        return isinstance(self.estimator, TeachingOnlineEstimator)
 
     def _xy(self, s: int) -> list[int]:
         return [int(v) for v in self.mdp.state_xy[s]]
@@ -242,6 +264,7 @@ class LiveSession:
         if self.refine is not None:  # what the page showed, which a resume cannot recompute
             live["history"] = {"beta_hat": self.history_beta, "entropy": self.history_entropy}
         refined = self.refined
+        teaching = {"teaching": self.estimator.record()} if self.teaching else {}
         return discrete_result(self.estimator.belief(), feature_names=self.mdp.feature_names,
                                settings=settings,
                                data={"episodes": trajs.n_episodes, "actions": len(trajs),
@@ -249,7 +272,7 @@ class LiveSession:
                                refinement=None if refined is None else refined.record,
                                warnings=list(refined.warnings) if refined is not None and refined.warnings
                                else None,
-                               extra={"live": live})
+                               extra={**teaching, "live": live})
 
     def write_result(self) -> None:
         from ..results import write_result
@@ -356,7 +379,14 @@ class LiveSession:
             "history": {"beta_hat": self.history_beta, "entropy": self.history_entropy,
                         "episode_starts": self.episode_starts},
             **({"expertise_now": self.expertise_now()} if self.expertise == "changing" else {}),
+            **({"teaching": self.teaching_now()} if self.teaching else {}),
         }
+
+    def teaching_now(self) -> dict[str, Any]:
+        """``--model pedagogical``: the teaching reading of every action so far (the verdict, its
+        sentence, the Bayes factor, P(teaching), λ̂ and its 90% interval)."""
+        record = self.estimator.record()
+        return {k: record[k] for k in TEACHING_SHOWN}
 
     def expertise_now(self) -> dict[str, Any] | None:
         """``--expertise changing``: the β of the episode being driven (or of the last one), filtered
@@ -401,19 +431,30 @@ def validate_message(msg: Any) -> str | None:
 def open_session(zone_map: Map, hypotheses: HypothesisSet, out_dir: str | Path, *,
                  settings: dict[str, Any] | None = None, seed: int = 0,
                  progress: Callable[[int, int], None] | None = None,
-                 n_samples: int = 48, expertise: str = "stationary", refine: Any = None) -> LiveSession:
+                 n_samples: int = 48, expertise: str = "stationary", refine: Any = None,
+                 model: str = DEFAULT_MODEL, lambdas=None) -> LiveSession:
     """Solve the hypotheses on the map and open (or resume) the recording in ``out_dir``.
 
     ``refine``: the :class:`~expertise_irl.inference.methods.DiscreteOptions` of an adaptive set, refined
     from ``hypotheses`` after every episode (None: ``hypotheses`` stay the set). A resumed adaptive
     session refines once from the finished episodes of ``demos.csv``: refinement is a function of
-    the demonstrations, so it reaches the set the recording session was on."""
+    the demonstrations, so it reaches the set the recording session was on.
+
+    ``model``: one of :data:`LIVE_MODELS`; ``pedagogical`` estimates under the teaching model over
+    the fixed set ``hypotheses`` with the λ grid ``lambdas`` (None: the default grid); it takes
+    neither ``refine`` nor changing expertise (an :class:`~expertise_irl.options.OptionError` naming
+    the option)."""
+    check_live_model(model, refine=refine, expertise=expertise, lambdas=lambdas)
     out_dir = Path(out_dir)
     mdp = zone_map.to_mdp()
     trajs = check_out_dir(zone_map, out_dir, settings)
     out_dir.mkdir(parents=True, exist_ok=True)
-    est = None if refine is not None and trajs is not None and len(trajs) else \
-        OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
+    if model == PEDAGOGICAL:
+        est = TeachingOnlineEstimator.from_mdp(mdp, hypotheses, progress=progress,
+                                               **({} if lambdas is None else {"lambdas": lambdas}))
+    else:
+        est = None if refine is not None and trajs is not None and len(trajs) else \
+            OnlineEstimator.from_mdp(mdp, hypotheses, progress=progress)
     session = LiveSession(zone_map, est, out_dir, dict(settings or {}), seed=seed, n_samples=n_samples,
                           expertise=expertise, refine=refine, start_hypotheses=hypotheses)
     previous = _previous_live(out_dir / RESULT_NAME)
@@ -449,11 +490,14 @@ def _replay(session: LiveSession, mdp, trajs, previous: dict[str, Any], progress
         else:
             session.estimator = OnlineEstimator.from_mdp(mdp, session.start_hypotheses, progress=progress)
     est = session.estimator
-    prior = est.belief()
-    est.feed(trajs)
-    trace = prior.trace(trajs)
-    session.history_beta = trace.mean_beta[1:].tolist()
-    session.history_entropy = trace.entropy[1:].tolist()
+    if session.teaching:  # the teaching model's estimate after each action, as the page showed it
+        session.history_beta, session.history_entropy = _feed_traced(est, trajs)
+    else:
+        prior = est.belief()
+        est.feed(trajs)
+        trace = prior.trace(trajs)
+        session.history_beta = trace.mean_beta[1:].tolist()
+        session.history_entropy = trace.entropy[1:].tolist()
     if session.refine is not None:  # the finished episodes were shown over earlier sets: as saved
         n_done = len(finished_episodes(trajs, est.episode_open))
         shown = previous.get("history")
@@ -466,6 +510,49 @@ def _replay(session: LiveSession, mdp, trajs, previous: dict[str, Any], progress
     session.episode_starts = first.tolist()
     starts = previous.get("starts")
     session.starts_log = starts if isinstance(starts, list) else []
+
+
+def _feed_traced(est: OnlineEstimator, trajs) -> tuple[list[float], list[float]]:
+    """Feed ``trajs`` to ``est`` one pair at a time: (β̂, entropy) after each pair."""
+    from ..demos.trajectories import Trajectories
+
+    beta, entropy = [], []
+    for i in range(len(trajs)):
+        one = slice(i, i + 1)
+        e = est.feed(Trajectories(trajs.episode[one], trajs.step[one], trajs.state[one], trajs.action[one]))
+        beta.append(e.beta_hat)
+        entropy.append(e.entropy)
+    return beta, entropy
+
+
+def check_live_model(model: str, *, refine: Any = None, expertise: str = "stationary", lambdas=None) -> None:
+    """Refuse a model the live page does not run, or options the model does not take.
+
+    Args:
+        model: the observation model (one of :data:`LIVE_MODELS`).
+        refine: the adaptive set's options, or None for a fixed set.
+        expertise: ``stationary`` or ``changing``.
+        lambdas: the λ grid (``pedagogical`` only), or None.
+
+    Raises:
+        OptionError: naming the option: another model, ``pedagogical`` with an adaptive set
+            (``refine``) or changing expertise, or ``lambdas`` without ``pedagogical``.
+    """
+    from ..options import OptionError, one_of
+
+    one_of(model, LIVE_MODELS, "model")
+    if model != PEDAGOGICAL:
+        if lambdas is not None:
+            raise OptionError("{lambdas} is the teaching model's λ grid: give it with {model} pedagogical",
+                              "lambdas", "model")
+        return
+    if refine is not None:
+        raise OptionError("{refine} cannot be used with {model} pedagogical: the literal observer's set "
+                          "is fixed before the data (name a set with --thetas/--betas or take the default)",
+                          "refine", "model")
+    if expertise != "stationary":
+        raise OptionError("{expertise} changing cannot be used with {model} pedagogical (one β for every "
+                          "episode)", "expertise", "model")
 
 
 def finished_episodes(trajs, last_open: bool):

@@ -208,6 +208,11 @@
     $("beta-now-line").hidden = s.expertise_now === undefined;
     $("beta-now").textContent = now ? now.beta_mean.toPrecision(3) + " (90%: " + fmtBeta(now.q05) + "–" +
       fmtBeta(now.q95) + ", episode " + now.episode + ")" : "–";
+    const teach = s.teaching;  // --model pedagogical: teaching or doing, from every action so far
+    $("teaching-line").hidden = teach === undefined;
+    $("teaching").textContent = teach ? teach.reading + "; λ̂ = " + fmtBeta(teach.lambda_hat) + " (90%: " +
+      fmtBeta(teach.lambda_interval[0]) + "–" + fmtBeta(teach.lambda_interval[1]) + ")" : "–";
+    $("teaching").dataset.verdict = teach ? teach.verdict : "";
     $("group").textContent = est.expertise_group + " expertise";
     $("entropy").textContent = "posterior entropy " + est.entropy.toFixed(3) + " nats of " +
       Math.log(nHypotheses()).toFixed(2) + " (" + nHypotheses() + " hypotheses)";
