@@ -285,13 +285,13 @@ class TeachingPosterior:
         taught, doer = self.belief(log_policy), self.belief(log_policy, doer=True)
         lbf, p = self.log_bayes_factor, self.lambda_probabilities
         b, b0 = float(taught.mean_beta), float(doer.mean_beta)
-        verdict = self.verdict
+        verdict, shown = self.verdict, round(2 * lbf, 1) + 0.0  # + 0.0: never "-0.0"
         head = {"teaching": "demonstrations read as teaching",
                 "doing": "demonstrations read as doing the task",
                 "undecided": "the demonstrations do not tell teaching from doing"}[verdict]
         return {
             "verdict": verdict,
-            "reading": f"{head} (2 log BF = {2 * lbf:.1f}): β under the teaching model {b:.3g} "
+            "reading": f"{head} (2 log BF = {shown:.1f}): β under the teaching model {b:.3g} "
                        f"against {b0:.3g} under maxent",
             "log_bayes_factor": lbf, "p_teaching": float(p[1:].sum()),
             "lambda_hat": float(p @ self.lambdas), "lambda_interval": list(self.lambda_interval()),
