@@ -361,8 +361,10 @@ def infer(
     the set); birl, map and nuts search the continuous space (θ on the simplex or box,
     β > 0) under --prior: by default log-uniform (θ uniform, log β uniform on [0.001, 100]),
     or the paper's (Sec. VII-A: β ~ Normal(5.005, 1.5) truncated to [0.01, 10]) with
-    --prior paper. --model chooses the observation model for every method. --seed makes
-    every method reproducible. Convergence warnings go to stderr and to the result's
+    --prior paper. --model chooses the observation model for every method (pedagogical: the
+    discrete method on a fixed set, with the teaching weight's grid --lambdas; the result's
+    `teaching` says whether the demonstrations read as teaching). --seed makes every method
+    reproducible. Convergence warnings go to stderr and to the result's
     diagnostics.warnings.
     """
     from ..inference.methods import get_method
