@@ -154,7 +154,7 @@ def simulate_teacher(mdp: TabularMDP, theta, beta, lam: float, n_episodes: int,
             another task.
     """
     from ..hypotheses import HypothesisSet
-    from ..inference.pedagogical import solved_observer, teacher_log_policy
+    from ..planning.teaching import solved_observer, teacher_log_policy
 
     th, b = _check_hypothesis(mdp, theta, beta)
     if isinstance(observer, HypothesisSet):
