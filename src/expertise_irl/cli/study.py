@@ -104,6 +104,14 @@ ModelsOption = Annotated[
 ]
 
 
+LambdasOption = Annotated[
+    str | None,
+    typer.Option(help="The pedagogical model's grid of teaching weights λ (--model pedagogical or "
+                 "pedagogical in --models): comma-separated, with 0 (the doer) and a λ > 0; default "
+                 "0,0.003,0.01,0.03,0.1,0.3,1."),
+]
+
+
 @app.command()
 @handles_errors
 def study(
@@ -141,6 +149,7 @@ def study(
     population: PopulationOption = False,
     check: CheckOption = "fast",
     models: ModelsOption = None,
+    lambdas: LambdasOption = None,
 ) -> None:
     """Run every participant of a study: estimates, warnings, a held-out check, Tables V–VI, figures.
 
@@ -148,12 +157,13 @@ def study(
     their tasks), DIR/tasks.csv (one row per manifest row), DIR/study.png and
     DIR/participants/ID/result.json and ID.png; with --models, DIR/models.csv too. Maps shared
     by participants are solved once; a second run on the same DIR resumes, and may change
-    --figures, --group-by and --refine (docs/user-studies.md).
+    --figures, --group-by and --refine (docs/user-studies.md). With the pedagogical model
+    (--model, or in --models) each participant's verdict, teaching or doing, is in study.md.
     """
     from ..options import Share, choose, one_of
     from ..userstudy.evidence import parse_models
     from ..userstudy.run import ReportOptions, StudyOptions
-    from ..userstudy.study import METHODS
+    from ..userstudy.study import DEFAULT_LAMBDAS, METHODS, lambdas_spec
 
     path = resolve_manifest(manifest)
     one_of(method, METHODS, "method")  # (the command line writes each field as its flag)
@@ -174,6 +184,7 @@ def study(
         models=compared,
         share=share,
         expertise=expertise,
+        lambdas=lambdas_spec(lambdas) if lambdas is not None else DEFAULT_LAMBDAS,
     )
     from ..inference.misspecification import check_level
 
@@ -218,6 +229,17 @@ def _run(path: Path, out: Path, opts, workers: int | None, scheduler: str | None
     return outcome
 
 
+def _print_teaching(records, out: Path) -> None:
+    """The pedagogical model's reading of each participant and the count of each verdict."""
+    if not records:
+        return
+    for pid, r in records.items():
+        _say(f"{pid}: " + (r["reading"] if r else "no hypothesis of the set explains the demonstrations"))
+    counts = {v: sum(1 for r in records.values() if r and r["verdict"] == v)
+              for v in ("teaching", "doing", "undecided")}
+    _say("teaching verdicts: " + ", ".join(f"{v} {n}" for v, n in counts.items()) + f" (see {out}/study.md)")
+
+
 def _print_outcome(outcome, out: Path) -> None:
     """One line per participant (and per model comparison), the warnings, then what was written."""
     import math
@@ -240,6 +262,7 @@ def _print_outcome(outcome, out: Path) -> None:
     for pid, ev in (outcome.evidence or {}).items():
         bfs = ", ".join(f"{f['model']} {f['log_bayes_factor']:.2f}" for f in ev["models"])
         _say(f"{pid}: best model {ev['best'] or 'n/a'} (log Bayes factors vs best: {bfs})")
+    _print_teaching(outcome.teaching, out)
     verdicts: dict[str, list[str]] = {}
     for r in outcome.participants:
         if r.get("misspecification"):

@@ -9,12 +9,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..models import PEDAGOGICAL
 from ..result import Settings, freeze
 from ..results import file_digest, finite_or_null, write_json
 from .identity import StudyOptions, task_map_digest
 from .manifest import Manifest, StudyTask
 from .paths import OPTIMAL_BETA, task_counts
 from .report import GROUP_COLUMNS
+from .teaching import asks_teaching, teaching_columns
 
 
 def _path_states(mdp, states, actions) -> np.ndarray:
@@ -92,6 +94,7 @@ def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine, grid,
         "method": opts.method, "model": opts.model, "share": opts.share, "rate": opts.rate,
         "max_dt": opts.max_dt, "fill_gaps": opts.fill_gaps, "snap": opts.snap, "optimal_beta": OPTIMAL_BETA,
         **({"models": list(opts.models)} if opts.models else {}),
+        **(_teaching_settings(opts) if asks_teaching(opts) else {}),
     }
     if opts.method == "discrete":
         settings.update({"thetas": opts.thetas, "betas": opts.betas, "n_theta": hyp.n_theta,
@@ -106,6 +109,16 @@ def _settings(manifest: Manifest, pid: str, opts: StudyOptions, hyp, mine, grid,
                          "n_hypotheses": len(h), "prior": refined.record["prior"],
                          "start": {"n_theta": hyp.n_theta, "n_beta": hyp.n_beta, "n_hypotheses": len(hyp)}})
     return settings
+
+
+def _teaching_settings(opts: StudyOptions) -> dict[str, Any]:
+    """The teaching model's λ grid, its prior and the literal observer (``--model pedagogical`` or
+    pedagogical in ``--models``)."""
+    from ..inference.pedagogical import parse_lambdas
+
+    return {"lambdas": parse_lambdas(opts.lambdas).tolist(),
+            "lambda_prior": "P(λ = 0) = 1/2, the rest uniform over the grid's λ > 0",
+            "observer": "literal: maxent over the study's set with a uniform prior, on each map"}
 
 
 def _result_doc(est, opts: StudyOptions, settings, names, n_tasks: int, episodes: int, d: Path):
@@ -213,6 +226,7 @@ def participant_report(pdir: Path, manifest: Manifest, pid: str, est, optimal, o
         "warnings": len(doc.get("diagnostics", {}).get("warnings") or []),
         "misspecification": (doc.get("diagnostics", {}).get("misspecification") or {}).get("verdict", ""),
         **changing_columns(doc),
+        **(teaching_columns(doc.get("teaching")) if opts.model == PEDAGOGICAL else {}),
     }
     job = (d / f"{pid}.png", pid, [p.panel for p in parts], doc)
     return row, [p.row for p in parts], doc.get("modes", []), job
@@ -245,6 +259,11 @@ def _misspecification(doc: dict[str, Any], mine: list[StudyTask], opts: StudyOpt
     if opts.share != "both":
         doc.setdefault("diagnostics", {}).setdefault("unavailable", {})["misspecification"] = (
             "the checks simulate one θ for all tasks; --share beta has a θ per task")
+        return
+    if opts.model == PEDAGOGICAL:
+        doc.setdefault("diagnostics", {}).setdefault("unavailable", {})["misspecification"] = (
+            "the checks' replicates of a teacher need the teaching policy of each posterior draw on every "
+            "state of each map, which the study's sweep does not keep (infer --model pedagogical runs them)")
         return
     if doc.get("hypotheses"):
         hs = doc["hypotheses"]

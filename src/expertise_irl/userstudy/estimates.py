@@ -49,6 +49,22 @@ def _constant(mine: list[StudyTask], names) -> tuple[list[int], list[str]]:
     return zero, [constant_feature_warning(names[i], v) for i, v in found]
 
 
+def _participant(mine: list[StudyTask], hyps) -> tuple[tuple[str, ...], Any, list[int], list[str],
+                                                     dict[str, int]]:
+    """A participant's feature names, hypothesis set, features kept at θ_i = 0, the data's warnings and
+    counts."""
+    names = tuple(mine[0].mdp.feature_names)
+    hyp = hyps[len(names)]
+    zero, warnings = _constant(mine, names)
+    if zero and not posteriors.allows_zero(hyp, zero):
+        warnings.append(f"no θ of the set has θ = 0 on {', '.join(names[i] for i in zero)}, so the "
+                        "study could not keep them at 0; use a --thetas whose values include 0")
+        zero = []
+    data = {"tasks": len(mine), "episodes": sum(t.trajectories.n_episodes for t in mine),
+            "actions": sum(len(t.trajectories) for t in mine)}
+    return names, hyp, zero, warnings, data
+
+
 def discrete_estimates(manifest: Manifest, ells, hyps, share: str,
                        expertise: str = "stationary") -> dict[str, dict[str, Any]]:
     from ..inference.belief import DiscreteBelief
@@ -58,18 +74,10 @@ def discrete_estimates(manifest: Manifest, ells, hyps, share: str,
     out = {}
     for pid in manifest.participants:
         mine = manifest.tasks_of(pid)
-        names = tuple(mine[0].mdp.feature_names)
-        hyp = hyps[len(names)]
+        names, hyp, zero, warnings, data = _participant(mine, hyps)
         H = len(hyp)
-        zero, warnings = _constant(mine, names)
-        if zero and not posteriors.allows_zero(hyp, zero):
-            warnings.append(f"no θ of the set has θ = 0 on {', '.join(names[i] for i in zero)}, so the "
-                            "study could not keep them at 0; use a --thetas whose values include 0")
-            zero = []
         notes = list(warnings)  # the warnings of the data, before the posterior's
         task_ll = [ells[t.index].sum(axis=0) for t in mine]
-        data = {"tasks": len(mine), "episodes": sum(t.trajectories.n_episodes for t in mine),
-                "actions": sum(len(t.trajectories) for t in mine)}
         lp = posteriors.log_prior_joint(hyp, zero)
         beliefs = [DiscreteBelief(hyp, np.zeros((H, 0, 4)), lp, ll, len(t.trajectories))
                    for ll, t in zip(task_ll, mine, strict=True)]
@@ -90,6 +98,39 @@ def discrete_estimates(manifest: Manifest, ells, hyps, share: str,
         else:
             out[pid] = _shared_beta_estimate(mine, hyp, zero, task_ll, data,
                                              {"heldout": held, **curve}, warnings, notes)
+    return out
+
+
+def teaching_estimates(manifest: Manifest, tlls, hyps, lambdas) -> dict[str, dict[str, Any]]:
+    """``--model pedagogical``: each participant's posterior over Ψ × Λ (:mod:`.teaching`, ``--share
+    both``), their result's β̂ and θ̂ λ's marginal and its ``teaching`` record; ``tlls[row]`` is a row's
+    ``[E, L, H]`` log-likelihoods."""
+    from ..inference.diagnostics import discrete_warnings
+    from .teaching import participant_posterior
+
+    out = {}
+    for pid in manifest.participants:
+        mine = manifest.tasks_of(pid)
+        names, hyp, zero, warnings, data = _participant(mine, hyps)
+        notes = list(warnings)
+        episode_ll = [tlls[t.index] for t in mine]
+        tp, flat, prior = participant_posterior(episode_ll, hyp, zero, lambdas, data["actions"])
+        held = posteriors.heldout_check(flat, [[len(s) for s, _ in t.trajectories.episodes()] for t in mine],
+                                        hyp, "both", zero, log_prior=prior)
+        empty = np.zeros((len(hyp), 0, mine[0].mdp.n_actions))
+        joint = tp.belief(empty)
+        result = participant_result(joint, names, data, {"share": "both", "heldout": held,
+                                                         "teaching": tp.record(empty)},
+                                    warnings + discrete_warnings(joint, names), [names[i] for i in zero])
+        per_task = []
+        for e in episode_ll:
+            b, _, _ = participant_posterior([e], hyp, zero, lambdas, 0)
+            own = b.belief(empty)
+            per_task.append({"beta_hat": own.mean_beta, "theta_hat": own.mean_theta.tolist(),
+                             "groups": own.group_probabilities()})
+        out[pid] = {"result": result, "groups": joint.group_probabilities(), "per_task": per_task,
+                    "task_theta": [list(result.theta_hat)] * len(mine), "zero_features": zero,
+                    "hypotheses": hyp, "notes": notes}
     return out
 
 

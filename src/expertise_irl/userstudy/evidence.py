@@ -14,6 +14,12 @@ tasks, shared as ``--share`` says (:mod:`.posteriors`):
   (:func:`.posteriors.heldout_check`: leave-one-episode-out within tasks of ≥ 2 episodes,
   else leave-one-task-out with ``--share both``) under each model. ``unavailable`` says why a
   participant has none.
+
+``pedagogical`` (``--share both`` only; :mod:`.teaching`) is the teacher's evidence, ``log
+mean_{λ > 0} P(Ξ | λ)`` over the grid's positive teaching weights, so that minus ``maxent``'s it is
+the Bayes factor of teaching against doing; its held-out check is over Ψ × Λ, its β̂ and θ̂ λ's
+marginal, and its entry adds ``teaching`` (λ̂, its interval, the verdict, ``maxent``'s β̂), which
+``models.csv`` carries in :data:`.teaching.MODELS_TEACHING_COLUMNS`.
 """
 
 from __future__ import annotations
@@ -26,7 +32,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..inference.evidence import bayes_factor_reading, check_model_list
+from ..inference.pedagogical import LAMBDAS, parse_lambdas
+from ..models import PEDAGOGICAL
 from . import posteriors
+from .teaching import MODELS_TEACHING_COLUMNS, teaching_columns, teaching_fit
 
 
 def parse_models(spec: str) -> tuple[str, ...]:
@@ -35,7 +44,8 @@ def parse_models(spec: str) -> tuple[str, ...]:
 
 
 def check_models(models: Sequence[str], method: str) -> None:
-    """``--models`` is for ``--method discrete`` only (evidence is a sum over the hypothesis set)."""
+    """``--models`` is for ``--method discrete`` only (evidence is a sum over the hypothesis set); what
+    ``pedagogical`` needs besides is checked by :func:`.teaching.check_teaching`."""
     if models and method != "discrete":
         raise InputError(f"--models needs --method discrete (got --method {method})")
     if models:
@@ -43,13 +53,16 @@ def check_models(models: Sequence[str], method: str) -> None:
 
 
 def participant_evidence(manifest, lls: dict[str, dict[int, np.ndarray]], hypotheses, share: str = "both",
-                         zero_features: dict[str, list[int]] | None = None) -> dict[str, dict[str, Any]]:
+                         zero_features: dict[str, list[int]] | None = None,
+                         lambdas=LAMBDAS) -> dict[str, dict[str, Any]]:
     """Per participant, the ``model_evidence`` of their ``result.json``.
 
     ``lls[m][row]`` is the ``[E, H]`` per-episode log-likelihood of manifest row ``row`` under
-    model ``m``; ``zero_features[pid]`` the features kept at θ_i = 0 for that participant.
+    model ``m`` (``pedagogical``: ``[E, L, H]``, at each λ of ``lambdas``); ``zero_features[pid]``
+    the features kept at θ_i = 0 for that participant.
     """
     zero_features = zero_features or {}
+    lam = parse_lambdas(lambdas)
     out = {}
     for pid in manifest.participants:
         mine = manifest.tasks_of(pid)
@@ -60,19 +73,13 @@ def participant_evidence(manifest, lls: dict[str, dict[int, np.ndarray]], hypoth
         fits, held = [], None
         for m, ll in lls.items():
             ep = [ll[t.index] for t in mine]
-            task_ll = [e.sum(axis=0) for e in ep]
-            z = posteriors.log_evidence(task_ll, hyp, share, zero)
-            held = posteriors.heldout_check(ep, actions, hyp, share, zero)
-            if share == "both" and math.isfinite(z):
-                p = np.exp(np.sum(task_ll, axis=0) + posteriors.log_prior_joint(hyp, zero) - z)
-                beta_hat, theta_hat = float(p @ hyp.beta), (p @ hyp.theta).tolist()
-            elif math.isfinite(z):
-                sb = posteriors.shared_beta_posterior(task_ll, hyp, zero)
-                beta_hat, theta_hat = sb.mean_beta, None
+            if m == PEDAGOGICAL:
+                fit = teaching_fit(ep, actions, hyp, zero, lam, sum(len(t.trajectories) for t in mine),
+                                   mine[0].mdp.n_actions)
+                held = fit.pop("heldout")
             else:
-                beta_hat, theta_hat = math.nan, None
-            fits.append({"model": m, "log_evidence": z, "beta_hat": beta_hat, "theta_hat": theta_hat,
-                         "heldout_log_likelihood_per_action": held["per_action"]})
+                fit, held = _doer_fit(m, ep, actions, hyp, share, zero)
+            fits.append(fit)
         best = max(f["log_evidence"] for f in fits)
         best_model = next(f["model"] for f in fits if f["log_evidence"] == best) if best > -math.inf else None
         for f in fits:
@@ -102,7 +109,26 @@ def participant_evidence(manifest, lls: dict[str, dict[int, np.ndarray]], hypoth
     return out
 
 
+def _doer_fit(m: str, ep: list[np.ndarray], actions, hyp, share: str, zero) -> tuple[dict[str, Any], dict]:
+    """A model with a Bellman backup: its entry of ``model_evidence`` and its held-out check's dict."""
+    task_ll = [e.sum(axis=0) for e in ep]
+    z = posteriors.log_evidence(task_ll, hyp, share, zero)
+    held = posteriors.heldout_check(ep, actions, hyp, share, zero)
+    if share == "both" and math.isfinite(z):
+        p = np.exp(np.sum(task_ll, axis=0) + posteriors.log_prior_joint(hyp, zero) - z)
+        beta_hat, theta_hat = float(p @ hyp.beta), (p @ hyp.theta).tolist()
+    elif math.isfinite(z):
+        sb = posteriors.shared_beta_posterior(task_ll, hyp, zero)
+        beta_hat, theta_hat = sb.mean_beta, None
+    else:
+        beta_hat, theta_hat = math.nan, None
+    return ({"model": m, "log_evidence": z, "beta_hat": beta_hat, "theta_hat": theta_hat,
+             "heldout_log_likelihood_per_action": held["per_action"]}, held)
+
+
 def models_columns(models: Sequence[str]) -> list[str]:
+    """``models.csv``'s columns: each model's evidence, Bayes factor and held-out score, and with
+    ``pedagogical`` its λ̂, interval, Bayes factor of teaching, verdict and the two β̂."""
     return [
         "participant",
         *(f"log_evidence_{m}" for m in models),
@@ -112,6 +138,7 @@ def models_columns(models: Sequence[str]) -> list[str]:
         "heldout_episodes",
         "heldout_actions",
         *(f"heldout_per_action_{m}" for m in models),
+        *(MODELS_TEACHING_COLUMNS if PEDAGOGICAL in models else ()),
     ]
 
 
@@ -131,6 +158,8 @@ def models_rows(evidence: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             r[f"log_evidence_{m}"] = float(f["log_evidence"])
             r[f"log_bf_{m}"] = float(f["log_bayes_factor"])
             r[f"heldout_per_action_{m}"] = math.nan if held is None else float(held)
+            if m == PEDAGOGICAL:
+                r.update(teaching_columns(f.get("teaching")), beta_hat_pedagogical=float(f["beta_hat"]))
         rows.append(r)
     return rows
 
@@ -148,7 +177,10 @@ def evidence_markdown(evidence: dict[str, dict[str, Any]], models: Sequence[str]
         "(uniform prior), per observation model; log BF = log evidence − the participant's best "
         "(0 for the best; 2 |log BF| < 2 barely worth mentioning, 2–6 positive, 6–10 strong, "
         "> 10 very strong). Held-out: log-likelihood per held-out action "
-        f"({posteriors.HELDOUT_RULE}). The tables above use --model {main_model}.",
+        f"({posteriors.HELDOUT_RULE}). The tables above use --model {main_model}."
+        + (" pedagogical's is a teacher's, log of the mean of P(Ξ | λ) over the grid's λ > 0 (its held-out "
+           "check over every (h, λ)): minus maxent's it is the Bayes factor of teaching against doing "
+           "(below)." if PEDAGOGICAL in models else ""),
         "",
         "| participant | " + " | ".join(f"log evidence ({m})" for m in models) + " | best | "
         + " | ".join(f"log BF ({m})" for m in models) + " | held-out actions | "

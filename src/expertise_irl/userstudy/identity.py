@@ -17,13 +17,14 @@ from typing import Any
 
 from .. import __version__, options
 from ..errors import InputError
-from ..models import DEFAULT_MODEL
+from ..models import DEFAULT_MODEL, PEDAGOGICAL
 from ..options import Expertise, Share, choose
 from ..results import file_digest, map_digest, write_json
 from . import evidence as model_evidence
 from .manifest import Manifest, StudyTask
 from .report import study_columns, task_columns
-from .study import UserStudyConfig
+from .study import DEFAULT_LAMBDAS, UserStudyConfig
+from .teaching import check_teaching
 
 STUDY_FILE = "study.json"
 #: 2: any map, per-episode log-likelihoods, --share, the β grid of --betas auto.
@@ -50,6 +51,7 @@ class StudyOptions:
     models: tuple[str, ...] = ()  # --models: observation models to compare (discrete only)
     share: str = options.DEFAULT_SHARE  # --share: both (one θ, β per participant) or beta (a θ per task)
     expertise: str = options.DEFAULT_EXPERTISE  # --expertise changing: a β per episode, in task order
+    lambdas: str = DEFAULT_LAMBDAS  # --lambdas: the pedagogical model's λ grid (study.lambdas_spec)
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,8 @@ def refines(opts: StudyOptions, report: ReportOptions) -> bool:
     when no set is named and the posterior is one (θ, β) per participant (``--share both``,
     stationary expertise, the discrete method)."""
     one = opts.method == "discrete" and opts.share == "both" and opts.expertise == "stationary"
+    if opts.model == PEDAGOGICAL:  # the literal observer's set is fixed (check_teaching refuses --refine)
+        return False
     if report.refine is None:
         return one and (opts.thetas, opts.betas) == DEFAULT_SET
     if report.refine and not one:
@@ -110,6 +114,8 @@ def identity(manifest: Manifest, opts: StudyOptions) -> dict[str, Any]:
         del options["share"]
     if opts.expertise == "stationary":  # (nor without --expertise changing)
         del options["expertise"]
+    if opts.lambdas == DEFAULT_LAMBDAS:  # (nor without --lambdas)
+        del options["lambdas"]
     ident = {"layout": LAYOUT, "options": options, "inputs": files}
     ident["hash"] = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
     return ident
@@ -221,9 +227,10 @@ def check_options(opts: StudyOptions, report: ReportOptions) -> bool:
     """Refuse bad options before reading anything; whether the participants' sets are refined."""
     from ..models import check_model
 
-    check_model(opts.model)
+    check_model(opts.model, solvable=False)
     UserStudyConfig(data="{}", method=opts.method, share=opts.share)  # a bad --method/--share first
     check_expertise(opts)
+    check_teaching(opts, report)
     refined = refines(opts, report)
     if report.population:
         from .population import check_population

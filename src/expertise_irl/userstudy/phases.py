@@ -1,6 +1,9 @@
 """A study's engine phases: the data they read, the discrete sets they solve, running one
 (resumable; failures raise :class:`StudyFailed`), ``--models``' extra inference phases and the
-optimal paths' phase."""
+optimal paths' phase. The teaching model (``pedagogical``) has a sweep of its own
+(``user-study-pedagogical``: every episode at every λ); its λ = 0 values serve ``maxent`` in
+``--models`` when ``--model pedagogical`` is the main one, and its optimal paths and ``--betas auto``
+are ``maxent``'s (a teacher plans as a doer)."""
 
 from __future__ import annotations
 
@@ -14,10 +17,12 @@ import numpy as np
 from .. import options
 from ..errors import ExpertiseIRLError
 from ..experiments import engine
+from ..models import PEDAGOGICAL
 from . import evidence as model_evidence
 from .identity import AUTO_BETAS, StudyOptions, task_map_key
 from .manifest import Manifest, StudyTask
-from .study import DISCRETE, OPTIMAL, UserStudyConfig, world_entry
+from .study import DEFAULT_LAMBDAS, DISCRETE, OPTIMAL, TEACHING, UserStudyConfig, world_entry
+from .teaching import solved_model
 
 
 class StudyFailed(ExpertiseIRLError):
@@ -68,19 +73,30 @@ def run_phase(study, where: Path, cfg, phase: str, workers, scheduler, on_task) 
     return summary
 
 
-def evidence_phases(out: Path, manifest: Manifest, rows, cfg, hyp, estimates, opts: StudyOptions, run):
+def evidence_phases(out: Path, manifest: Manifest, main_lls, cfg, hyp, estimates, opts: StudyOptions, run):
     """``--models``: the inference phase once per other model (``run``: workers, scheduler, on_task) and
-    each participant's evidence per model; ``(None, [])`` without it."""
+    each participant's evidence per model; ``(None, [])`` without it. ``main_lls``: the main sweep's
+    (:func:`episode_lls`, or :func:`teaching_lls` for ``--model pedagogical``)."""
     if not opts.models:
         return None, []
     lls, summaries = {}, []
     for m in opts.models:
-        where = out / "engine" / ("inference" if m == opts.model else f"inference-{m}")
-        if m != opts.model:
-            summaries.append(run_phase(DISCRETE, where, replace(cfg, model=m), f"inference ({m})", *run))
-        lls[m] = episode_lls(rows if m == opts.model else engine.load(where))
+        where = out / "engine" / f"inference-{m}"
+        if m == opts.model:
+            lls[m] = main_lls
+        elif m == "maxent" and opts.model == PEDAGOGICAL:  # λ = 0 of the teaching sweep: no other solve
+            lls[m] = {k: v[:, 0, :] for k, v in main_lls.items()}
+        elif m == PEDAGOGICAL:
+            summaries.append(run_phase(TEACHING, where, replace(cfg, model=m, lambdas=opts.lambdas),
+                                       f"inference ({m})", *run))
+            lls[m] = teaching_lls(engine.load(where))
+        else:
+            summaries.append(run_phase(DISCRETE, where, replace(cfg, model=m, lambdas=DEFAULT_LAMBDAS),
+                                       f"inference ({m})", *run))
+            lls[m] = episode_lls(engine.load(where))
     evidence = model_evidence.participant_evidence(manifest, lls, hyp, opts.share,
-                                                   {p: e["zero_features"] for p, e in estimates.items()})
+                                                   {p: e["zero_features"] for p, e in estimates.items()},
+                                                   lambdas=opts.lambdas)
     return evidence, summaries
 
 
@@ -97,7 +113,8 @@ def optimal_phase(out: Path, manifest: Manifest, data, estimates, opts: StudyOpt
         t["starts"] = [int(s) for s, _ in episode_starts(manifest.tasks[t["task"]])]
         for k in ("episodes", "steps", "states", "actions"):
             del t[k]
-    cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=opts.model, method=opts.method)
+    cfg2 = UserStudyConfig(data=json.dumps(data, sort_keys=True), model=solved_model(opts.model),
+                           method=opts.method)
     where = out / "engine" / ("optimal-refined" if refined else "optimal")
     summary = run_phase(OPTIMAL, where, cfg2, "optimal", *run)
     return summary, engine.load(where)
@@ -116,7 +133,7 @@ def hypothesis_sets(manifest: Manifest, opts: StudyOptions):
         return {K: DiscreteOptions(thetas=opts.thetas, betas=opts.betas).hypotheses(K) for K in Ks}, None
     thetas = {K: DiscreteOptions(thetas=opts.thetas, betas=options.Preset.PAPER_REAL).hypotheses(K).thetas
               for K in Ks}
-    betas, info = auto_beta_grid(mdps, thetas, model=opts.model)
+    betas, info = auto_beta_grid(mdps, thetas, model=solved_model(opts.model))
     spec = ",".join(f"{b:g}" for b in betas)
     return ({K: DiscreteOptions(thetas=opts.thetas, betas=spec).hypotheses(K) for K in Ks},
             {"betas": spec, **info})
@@ -129,6 +146,17 @@ def episode_lls(rows) -> dict[int, np.ndarray]:
         g = g.sort_values(["episode", "hypothesis"])
         E = int(g["episode"].max()) + 1
         out[int(k)] = g["log_likelihood"].to_numpy().reshape(E, -1)
+    return out
+
+
+def teaching_lls(rows) -> dict[int, np.ndarray]:
+    """``{manifest row: [E, L, H] log-likelihoods}`` of a teaching sweep (``user-study-pedagogical``)."""
+    out = {}
+    L = int(rows["lambda"].max()) + 1 if len(rows) else 0
+    for k, g in rows.groupby("task"):
+        g = g.sort_values(["episode", "lambda", "hypothesis"])
+        E = int(g["episode"].max()) + 1
+        out[int(k)] = g["log_likelihood"].to_numpy().reshape(E, L, -1)
     return out
 
 

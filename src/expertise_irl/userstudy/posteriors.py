@@ -131,12 +131,15 @@ def shared_beta_posterior(task_ll: Sequence[np.ndarray], hyp: HypothesisSet,
 
 
 def log_evidence(task_ll: Sequence[np.ndarray], hyp: HypothesisSet, share: str,
-                 zero_features: Sequence[int] = ()) -> float:
-    """log P(Ξ) of a participant's tasks (``[H]`` log-likelihood each) under ``share``."""
+                 zero_features: Sequence[int] = (), log_prior: np.ndarray | None = None) -> float:
+    """log P(Ξ) of a participant's tasks (``[H]`` log-likelihood each) under ``share``; with
+    ``log_prior`` (``share = "both"``), over the hypotheses it weighs (e.g. the teaching model's
+    Ψ × Λ, flattened like the log-likelihoods) instead of :func:`log_prior_joint`."""
     if share == "beta":
         terms = share_beta_terms(task_ll, hyp, log_prior_theta(hyp, zero_features))
         return float(_lse(terms.sum(axis=0) - math.log(hyp.n_beta)))
-    return float(_lse(np.sum(task_ll, axis=0) + log_prior_joint(hyp, zero_features)))
+    prior = log_prior_joint(hyp, zero_features) if log_prior is None else log_prior
+    return float(_lse(np.sum(task_ll, axis=0) + prior))
 
 
 def heldout_units(episodes: Sequence[int], share: str) -> tuple[str, list[tuple[int, int | None]]]:
@@ -154,13 +157,14 @@ def heldout_units(episodes: Sequence[int], share: str) -> tuple[str, list[tuple[
 
 
 def heldout_check(episode_ll: Sequence[np.ndarray], episode_actions: Sequence[Sequence[int]],
-                  hyp: HypothesisSet, share: str, zero_features: Sequence[int] = ()) -> dict[str, Any]:
+                  hyp: HypothesisSet, share: str, zero_features: Sequence[int] = (),
+                  log_prior: np.ndarray | None = None) -> dict[str, Any]:
     """The held-out check of one participant (rules in the module docstring).
 
     ``episode_ll[t]`` is task t's ``[E_t, H]`` per-episode log-likelihood; ``episode_actions[t][e]``
-    the number of actions of its episode e. Returns ``{"split", "units", "actions",
-    "log_likelihood", "per_action", "unavailable"}`` (``per_action`` None and ``unavailable`` the
-    reason when there is no split or the fit explains nothing).
+    the number of actions of its episode e; ``log_prior`` as :func:`log_evidence` takes it. Returns
+    ``{"split", "units", "actions", "log_likelihood", "per_action", "unavailable"}`` (``per_action``
+    None and ``unavailable`` the reason when there is no split or the fit explains nothing).
     """
     task_ll = [np.sum(e, axis=0) for e in episode_ll]
     T = len(task_ll)
@@ -175,7 +179,7 @@ def heldout_check(episode_ll: Sequence[np.ndarray], episode_actions: Sequence[Se
                if share == "beta" and T >= 2 else " or, with --share both, 2 tasks")
         )
         return out
-    total = log_evidence(task_ll, hyp, share, zero_features)
+    total = log_evidence(task_ll, hyp, share, zero_features, log_prior)
     if not math.isfinite(total):
         out["unavailable"] = "every hypothesis of the set gives the participant's data probability 0"
         return out
@@ -188,7 +192,7 @@ def heldout_check(episode_ll: Sequence[np.ndarray], episode_actions: Sequence[Se
         else:
             rest[t] = np.sum(np.delete(episode_ll[t], e, axis=0), axis=0)
             n = int(episode_actions[t][e])
-        score += total - log_evidence(rest, hyp, share, zero_features)
+        score += total - log_evidence(rest, hyp, share, zero_features, log_prior)
         actions += n
     out.update(units=len(units), actions=actions, log_likelihood=score, per_action=score / actions)
     return out

@@ -8,7 +8,8 @@ Steps (each engine phase is resumable: a finished task is not run again):
    (:func:`.diagnostics.auto_beta_grid`);
 2. inference on the engine, in ``DIR/engine/inference``: for ``discrete`` one task per
    distinct map (one solve of the hypothesis set, shared by every participant on it; the
-   log-likelihood of every episode), for ``map`` / ``nuts`` one task per participant;
+   log-likelihood of every episode; ``--model pedagogical``: at every teaching weight λ, in
+   :mod:`.teaching`'s sweep), for ``map`` / ``nuts`` one task per participant;
 3. each participant's posterior over their tasks (:mod:`.posteriors`: ``--share both``, one
    (θ, β), or ``--share beta``, one β and a θ per task), the held-out check, the warnings; with
    ``--models`` (discrete only), the same inference phase once per other model, in
@@ -22,7 +23,8 @@ Steps (each engine phase is resumable: a finished task is not run again):
 5. the reports: ``DIR/study.csv``, ``DIR/study.md``, ``DIR/tasks.csv`` (``DIR/models.csv``
    with ``--models``), ``DIR/study.png`` and, per participant,
    ``DIR/participants/ID/result.json`` and (``--figures``) ``DIR/participants/ID/ID.png``,
-   drawn in parallel.
+   drawn in parallel; with the teaching model (``--model pedagogical`` or in ``--models``),
+   ``study.md``'s verdicts, teaching or doing, one per participant (:mod:`.teaching`).
 
 ``DIR/study.json`` records what the study is (inputs with their digests, options); a
 second run on the same DIR with the same inputs and options resumes, anything else is
@@ -46,6 +48,8 @@ from typing import Any
 
 from ..atomic import write_atomic
 from ..experiments import engine
+from ..inference.pedagogical import parse_lambdas
+from ..models import PEDAGOGICAL
 from ..results import finite_or_null, write_json
 from . import evidence as model_evidence
 from .documents import changing_columns, participant_report
@@ -58,6 +62,7 @@ from .estimates import (
     doc_beta_marginal,
     refine_estimates,
     refine_participant,
+    teaching_estimates,
 )
 from .identity import (
     AUTO_BETAS,
@@ -85,6 +90,7 @@ from .phases import (
     optimal_phase,
     run_phase,
     study_data,
+    teaching_lls,
 )
 from .report import (
     CHANGING_COLUMNS,
@@ -95,7 +101,8 @@ from .report import (
     task_columns,
     write_csv,
 )
-from .study import CONTINUOUS, DISCRETE, UserStudyConfig
+from .study import CONTINUOUS, DEFAULT_LAMBDAS, DISCRETE, TEACHING, UserStudyConfig
+from .teaching import TEACHING_COLUMNS, teaching_markdown
 
 __all__ = [
     "AUTO_BETAS", "CONTINUOUS_HELDOUT", "DEFAULT_SET", "LAYOUT", "STUDY_FILE", "ReportOptions",
@@ -117,6 +124,8 @@ class StudyOutcome:
     # seconds: setup (inputs, β grid), inference (engine phases), reports, figures
     timing: dict[str, float] | None = None
     population: dict[str, Any] | None = None  # --population: population.json
+    # the pedagogical model (--model or --models): each participant's teaching record (None: none fits)
+    teaching: dict[str, dict[str, Any] | None] | None = None
 
 
 def run_study(
@@ -163,26 +172,21 @@ def run_study(
         share=opts.share,
         # the discrete set's curve comes from the per-episode log-likelihoods, not from the engine
         expertise="stationary" if opts.method == "discrete" else opts.expertise,
+        lambdas=opts.lambdas if opts.model == PEDAGOGICAL else DEFAULT_LAMBDAS,
     )
-    study = DISCRETE if opts.method == "discrete" else CONTINUOUS
+    study = (TEACHING if opts.model == PEDAGOGICAL else DISCRETE) if opts.method == "discrete" else CONTINUOUS
     t_inf = time.perf_counter()
     s1 = run_phase(study, out / "engine" / "inference", cfg, "inference", workers, scheduler, on_task)
     rows = engine.load(out / "engine" / "inference")
-    if opts.method == "discrete":
-        ells = episode_lls(rows)
-        estimates = discrete_estimates(manifest, ells, hyp, opts.share, opts.expertise)
-        if refined:
-            refine_estimates(manifest, ells, estimates, opts, workers)
-    else:
-        estimates = continuous_estimates(manifest, rows, opts.share)
-    evidence, s_models = evidence_phases(out, manifest, rows, cfg, hyp, estimates, opts,
+    ells, estimates = _estimates(manifest, rows, study, hyp, opts, refined, workers)
+    evidence, s_models = evidence_phases(out, manifest, ells, cfg, hyp, estimates, opts,
                                           (workers, scheduler, on_task))
     s2, optimal = optimal_phase(out, manifest, data, estimates, opts, refined, (workers, scheduler, on_task))
     inference_s = time.perf_counter() - t_inf
     population = add_population(manifest, ells, estimates, report) if report.population else None
     t_rep = time.perf_counter()
-    participants, jobs = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence, grid, report,
-                                  population)
+    participants, jobs, teaching = _reports(out, manifest, estimates, optimal, opts, hyp, names, evidence,
+                                            grid, report, population)
     report_s = time.perf_counter() - t_rep
     t_fig = time.perf_counter()
     _draw(out, jobs, figures_for, participants, names, manifest, workers, scheduler, on_figure, population)
@@ -194,14 +198,42 @@ def run_study(
                          "figures_s": figures_s, "figures": len(figures_for),
                          **({"population_s": population["document"]["timing_s"]["total"]}
                             if population else {})},
-                        population["document"] if population else None)
+                        population["document"] if population else None, teaching)
+
+
+def _estimates(manifest: Manifest, rows, study, hyp, opts: StudyOptions, refined: bool, workers):
+    """``(lls, estimates)``: the main sweep's per-episode log-likelihoods (:func:`.phases.episode_lls`,
+    :func:`.phases.teaching_lls` for the teaching model, None for map/nuts) and each participant's
+    estimate."""
+    if study is TEACHING:
+        ells = teaching_lls(rows)
+        return ells, teaching_estimates(manifest, ells, hyp, parse_lambdas(opts.lambdas))
+    if opts.method != "discrete":
+        return None, continuous_estimates(manifest, rows, opts.share)
+    ells = episode_lls(rows)
+    estimates = discrete_estimates(manifest, ells, hyp, opts.share, opts.expertise)
+    if refined:
+        refine_estimates(manifest, ells, estimates, opts, workers)
+    return ells, estimates
+
+
+def _teaching_records(opts: StudyOptions, jobs, evidence) -> tuple[dict[str, Any] | None, str]:
+    """Each participant's ``teaching`` record and where it comes from: their result's with ``--model
+    pedagogical``, else the pedagogical entry of their ``model_evidence``; ``(None, "")`` without the
+    teaching model."""
+    if opts.model == PEDAGOGICAL:
+        return {j[1]: j[3].get("teaching") for j in jobs}, "--model pedagogical (each result.json's teaching)"
+    if evidence is not None and PEDAGOGICAL in opts.models:
+        return ({pid: next(f for f in doc["models"] if f["model"] == PEDAGOGICAL).get("teaching")
+                 for pid, doc in evidence.items()}, "--models (each result.json's model_evidence)")
+    return None, ""
 
 
 def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptions, hyps, names,
              evidence, grid, report: ReportOptions,
-             population: dict[str, Any] | None = None) -> tuple[list[dict[str, Any]], list[tuple]]:
+             population: dict[str, Any] | None = None) -> tuple[list[dict[str, Any]], list[tuple], Any]:
     """Every participant's result, then ``study.csv``, ``tasks.csv``, ``study.md`` (and ``models.csv``);
-    returns the ``study.csv`` rows and the figures' jobs."""
+    returns the ``study.csv`` rows, the figures' jobs and the teaching records (:func:`_teaching_records`)."""
     pdir = out / "participants"
     pdir.mkdir(exist_ok=True)
     study_rows, task_rows, modes, warnings, jobs = [], [], {}, {}, []
@@ -222,7 +254,8 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
 
         pop_columns = population_columns(feats)
     write_csv(out / "study.csv", study_rows, study_columns(feats, extra=extra)
-              + (list(CHANGING_COLUMNS) if opts.expertise == "changing" else []) + pop_columns)
+              + (list(CHANGING_COLUMNS) if opts.expertise == "changing" else [])
+              + (list(TEACHING_COLUMNS) if opts.model == PEDAGOGICAL else []) + pop_columns)
     write_csv(out / "tasks.csv", task_rows, task_columns(feats, extra=extra))
     any_hyp = next(iter(hyps.values()), None)
     sections = misspecification_markdown(study_rows, report.check, opts.share)
@@ -249,8 +282,11 @@ def _reports(out: Path, manifest: Manifest, estimates, optimal, opts: StudyOptio
         write_csv(out / "models.csv", model_evidence.models_rows(evidence),
                   model_evidence.models_columns(opts.models))
         md += model_evidence.evidence_markdown(evidence, opts.models, opts.model)
+    teaching, where = _teaching_records(opts, jobs, evidence)
+    if teaching is not None:
+        md += "\n" + teaching_markdown(teaching, where)
     write_atomic(out / "study.md", md)
-    return study_rows, jobs
+    return study_rows, jobs, teaching
 
 
 def _draw(out: Path, jobs, chosen: list[str], rows, names, manifest: Manifest, workers, scheduler,

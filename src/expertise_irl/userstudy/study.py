@@ -15,6 +15,11 @@ files and a changed input is a different sweep:
 - ``user-study-optimal``: one task per floor plan; it solves β = 0.001 for the estimates θ̂
   of every participant with a task on it and follows the most probable action from each
   episode's start (Table VI).
+- ``user-study-pedagogical``: ``user-study-discrete`` for the teaching model (``--model
+  pedagogical``, :mod:`..inference.pedagogical`): one ``maxent`` solve of the set per map and, for
+  every episode, the log-likelihood of each hypothesis at each teaching weight λ of the grid
+  (``lambdas``), the literal observer believing the set with a uniform prior on that map. Its
+  λ = 0 values are ``user-study-discrete``'s under ``maxent``.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..experiments.spec import ADDED_FIELD, Column, Study, TaskSpec
+from ..inference.pedagogical import LAMBDAS, parse_lambdas
 from ..inference.priors import DEFAULT_PRIOR
 from ..models import DEFAULT_MODEL
 from ..options import (
@@ -55,6 +61,22 @@ SHARES = tuple(s.value for s in Share)
 CONFIG_BETAS = Preset.PAPER_REAL
 
 
+def lambdas_spec(spec) -> str:
+    """A λ grid (``--lambdas``, or a sequence) as the study records it: its values sorted, by ``repr``.
+
+    Args:
+        spec: comma-separated numbers or a sequence (:func:`~..inference.pedagogical.parse_lambdas`).
+
+    Returns:
+        The grid's string, the same for the same grid however it was written.
+    """
+    return ",".join(repr(float(x)) for x in parse_lambdas(spec))
+
+
+#: The teaching model's default λ grid, as a study records it.
+DEFAULT_LAMBDAS = lambdas_spec(LAMBDAS)
+
+
 @dataclass(frozen=True)
 class UserStudyConfig:
     """Data and options of one user study (the CLI builds it from the manifest)."""
@@ -73,6 +95,8 @@ class UserStudyConfig:
     # map/nuts: "changing" also fits the learning curve (inference.trend) over each participant's
     # episodes in task order (the discrete set's curve needs no engine option: see userstudy.run)
     expertise: str = field(default=DEFAULT_EXPERTISE, metadata={ADDED_FIELD: True})
+    # user-study-pedagogical: the grid of teaching weights λ (lambdas_spec)
+    lambdas: str = field(default=DEFAULT_LAMBDAS, metadata={ADDED_FIELD: True})
 
     def __post_init__(self) -> None:
         one_of(self.method, METHODS, "method")
@@ -167,6 +191,42 @@ def run_discrete(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, d
             cols["episode"].append(np.full(H, e))
             cols["hypothesis"].append(np.arange(H))
             cols["log_likelihood"].append(log_likelihood(sol.log_policy, states[mask], actions[mask]))
+    columns = {k: np.concatenate(v) for k, v in cols.items()}
+    return columns, {"set_solve_time_s": solve_time, "set_solves": 1, "hypotheses_solved": H}
+
+
+def run_teaching(cfg: UserStudyConfig, seed: int, params: dict) -> tuple[dict, dict]:
+    """The teaching model's log-likelihood of every (λ, hypothesis) for every episode of every manifest
+    row on one map: one ``maxent`` solve of the set, every hypothesis to the solver's tolerance (each is
+    part of the literal observer, so none may be screened out)."""
+    from ..demos.trajectories import Trajectories
+    from ..inference.evidence import teaching_pair_log_likelihoods
+    from ..planning.soft_vi import solve
+
+    key = params["map"]
+    _, mdp = _plan_mdp(cfg.data, key)
+    hyp = _hypotheses(cfg, mdp.n_features)
+    lam = parse_lambdas(cfg.lambdas)
+    t0 = time.perf_counter()
+    lp = np.asarray(solve(mdp, hyp.theta, hyp.beta, model="maxent").log_policy)
+    solve_time = time.perf_counter() - t0
+    H, L = len(hyp), len(lam)
+    cols: dict[str, list] = {"task": [], "participant": [], "episode": [], "lambda": [], "hypothesis": [],
+                             "log_likelihood": []}
+    for t in (t for t in _data(cfg.data)["tasks"] if t["map"] == key):
+        labels = np.asarray(t["episodes"])
+        states, actions = np.asarray(t["states"]), np.asarray(t["actions"])
+        for e, label in enumerate(dict.fromkeys(labels.tolist())):
+            mask = labels == label
+            pairs = Trajectories(np.zeros(int(mask.sum()), dtype=np.int64), np.arange(int(mask.sum())),
+                                 states[mask], actions[mask])
+            ll = teaching_pair_log_likelihoods(lp, hyp, pairs, lam)  # [L, H]
+            cols["task"].append(np.full(L * H, t["task"]))
+            cols["participant"].append(np.full(L * H, t["participant"], dtype=object))
+            cols["episode"].append(np.full(L * H, e))
+            cols["lambda"].append(np.repeat(np.arange(L), H))
+            cols["hypothesis"].append(np.tile(np.arange(H), L))
+            cols["log_likelihood"].append(ll.ravel())
     columns = {k: np.concatenate(v) for k, v in cols.items()}
     return columns, {"set_solve_time_s": solve_time, "set_solves": 1, "hypotheses_solved": H}
 
@@ -282,6 +342,11 @@ _DISCRETE_COLUMNS = (_TASK, _PARTICIPANT,
                      Column("episode", "int32", "episode of the row (0-based, in file order)"),
                      Column("hypothesis", "int32", "hypothesis index (θ-major, β fastest)"),
                      Column("log_likelihood", "float64", "log P(Ξ_row | h) (−inf: impossible)"))
+_TEACHING_COLUMNS = (_TASK, _PARTICIPANT,
+                     Column("episode", "int32", "episode of the row (0-based, in file order)"),
+                     Column("lambda", "int32", "index of the teaching weight λ in the config's grid"),
+                     Column("hypothesis", "int32", "hypothesis index (θ-major, β fastest)"),
+                     Column("log_likelihood", "float64", "log P(Ξ_row | h, λ) (−inf: impossible)"))
 _CONTINUOUS_COLUMNS = (_PARTICIPANT, Column("result", "string", "the method's result fields (JSON)"))
 _OPTIMAL_COLUMNS = (_TASK, _PARTICIPANT, Column("episode", "int32", "episode of the row (0-based)"),
                     Column("step", "int32", "step"), Column("state", "int64", "state"),
@@ -297,5 +362,9 @@ CONTINUOUS = _study("user-study-continuous", _participant_tasks, run_continuous,
                     version=3)
 OPTIMAL = _study("user-study-optimal", _map_tasks, run_optimal, _OPTIMAL_COLUMNS, ("task", "episode", "step"),
                  "expertise-irl study: optimal paths (β = 0.001, θ̂) per map", version=3)
+TEACHING = _study("user-study-pedagogical", _map_tasks, run_teaching, _TEACHING_COLUMNS,
+                  ("task", "episode", "lambda", "hypothesis"),
+                  "expertise-irl study --model pedagogical: one maxent solve per map, the teaching model's "
+                  "log-likelihoods of every episode of every row at every λ", version=1)
 #: Registered as the entry point ``user-study`` (group ``expertise_irl.studies``, in pyproject.toml).
-STUDIES = (DISCRETE, CONTINUOUS, OPTIMAL)
+STUDIES = (DISCRETE, CONTINUOUS, OPTIMAL, TEACHING)
