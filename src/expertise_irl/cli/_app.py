@@ -243,8 +243,9 @@ ModelOption = Annotated[str, typer.Option(
     "bonus, so noisy people wander), maxent-relative (entropy relative to a uniform choice: "
     "noisy people still head for the goal), boltzmann (softmax of the optimal Q-values) or "
     "pedagogical (maxent reweighted by what each action shows a literal observer of a fixed "
-    "hypothesis set, with a teaching weight λ: infer on a discrete set with --lambdas, simulate with "
-    "--lambda; a command that solves a model's Bellman backup refuses it).")]
+    "hypothesis set, with a teaching weight λ: infer, study, compare-models and live on a discrete "
+    "fixed set with --lambdas, simulate with --lambda; a command that solves a model's Bellman backup "
+    "refuses it).")]
 
 
 def _check_model(model: str) -> str:
