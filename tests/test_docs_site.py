@@ -45,9 +45,15 @@ TUTORIAL_OUTPUTS = {
         "report written to conditions/report/report.md",
         "fig2.png",
     ],
+    "teaching": [
+        "model pedagogical, λ=1, observer paper-real Θ × paper-sim B",   # simulate --lambda
+        "teacher  verdict teaching",                                      # infer's teaching record
+        "doer     verdict doing",
+        "pedagogical: demonstrations read as teaching",                   # compare-models
+    ],
 }
 #: PNG figures each tutorial displays
-TUTORIAL_IMAGES = {"infer-a-recording": 3, "user-study": 2, "reproduce-a-figure": 1}
+TUTORIAL_IMAGES = {"infer-a-recording": 3, "user-study": 2, "reproduce-a-figure": 1, "teaching": 1}
 
 
 @pytest.fixture(scope="module")

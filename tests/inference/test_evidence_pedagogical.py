@@ -127,8 +127,11 @@ def test_compare_models_command_with_pedagogical(task, tmp_path, lam, best):
     assert maxent["log_evidence"] == pytest.approx(t["log_evidence_by_lambda"][0], abs=1e-9)
     assert taught["log_evidence"] - maxent["log_evidence"] == pytest.approx(t["log_bayes_factor"], abs=1e-9)
     assert (t["verdict"] == "teaching") == (lam > 0)
-    assert f"pedagogical: {t['reading']}" in " ".join(res.stdout.split())
-    assert f" {t['two_log_bayes_factor']:.1f} " in res.stdout and f" {t['verdict']} " in res.stdout
+    lo, hi = t["lambda_interval"]
+    line = (f"pedagogical: {t['reading']}; λ̂ = {t['lambda_hat']:.3g}, "
+            f"90% credible interval [{lo:.3g}, {hi:.3g}]")
+    assert line in " ".join(res.stdout.split())
+    assert f"2 log BF = {round(t['two_log_bayes_factor'], 1) + 0.0:.1f}" in t["reading"]
 
 
 def test_compare_models_takes_a_lambda_grid(task, tmp_path):

@@ -225,6 +225,19 @@ def test_beta_marginal_bars_and_true_value():
         render.draw_beta_marginal(new_ax(), betas, bp[:3])
 
 
+def test_a_fine_beta_grid_labels_only_the_bars_with_mass_and_turns_its_ticks():
+    betas = np.logspace(-2, 1, 16)
+    bp = np.zeros(16)
+    bp[[7, 8]] = [0.19, 0.81]
+    ax = render.draw_beta_marginal(new_ax(), betas, bp)
+    assert sorted(t.get_text() for t in ax.texts) == ["0.19", "0.81"]
+    ticks = ax.get_xticklabels()
+    assert [t.get_text() for t in ticks][:3] == ["0.01", "0.016", "0.025"]
+    assert all(t.get_rotation() == 70 for t in ticks)
+    few = render.draw_beta_marginal(new_ax(), betas[:6], np.full(6, 1 / 6))
+    assert len(few.texts) == 6 and all(t.get_rotation() == 0 for t in few.get_xticklabels())
+
+
 def test_theta_summary_mean_true_and_top_list():
     thetas = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.5, 0.0], [1.0, 0.0, 0.0]])
     probs = np.array([0.2, 0.5, 0.1, 0.2])  # rows 0 and 3 are the same θ: 0.4 in total

@@ -83,18 +83,14 @@ def compare_models_command(
     elapsed = time.perf_counter() - t0
     table = Table(title=escape(f"{len(hyp)} hypotheses, {plural(trajs.n_episodes, 'episode')}, "
                                f"{plural(len(trajs), 'action')}"))
-    columns = ["model", "log evidence", "log BF vs best", "reading", "held-out log-lik / action", "β̂",
-               "group"]
-    if taught:
-        columns += ["λ̂", "λ 90%", "verdict", "2 log BF vs maxent"]
-    for col in columns:
-        table.add_column(col, justify="left" if col in ("model", "reading", "group", "verdict") else "right",
+    for col in ("model", "log evidence", "log BF vs best", "reading", "held-out log-lik / action", "β̂",
+                "group"):
+        table.add_column(col, justify="left" if col in ("model", "reading", "group") else "right",
                          no_wrap=col == "model")
     for f in cmp.fits:
         held = "n/a" if f.heldout_per_action is None else f"{f.heldout_per_action:.4f}"
-        teaching = _teaching_cells(f.teaching) if taught else ()
         table.add_row(f.model, f"{f.log_evidence:.2f}", f"{f.log_bayes_factor:.2f}", f.strength, held,
-                      f"{f.beta_hat:.3g}", f.expertise_group, *teaching)
+                      f"{f.beta_hat:.3g}", f.expertise_group)
     out.print(table)
     if cmp.n_test_episodes:
         _note(f"held out the last {cmp.n_test_episodes} of {plural(trajs.n_episodes, 'episode')} "
@@ -102,9 +98,9 @@ def compare_models_command(
     for why in cmp.unavailable.values():
         _note(why)
     _say(f"best: {cmp.best.model}")
-    for f in cmp.fits:
+    for f in cmp.fits:  # the teaching model's verdict, λ̂ and evidence against maxent: a line
         if f.teaching is not None:
-            _say(f"{f.model}: {f.teaching['reading']}")
+            _say(f"{f.model}: {_teaching_line(f.teaching)}")
     if out_path is not None:
         doc = {
             "version": __version__, "command": "compare-models", "feature_names": list(mdp.feature_names),
@@ -131,10 +127,8 @@ def compare_models_command(
         _say(f"wrote {out_path}")
 
 
-def _teaching_cells(teaching: dict | None) -> tuple[str, str, str, str]:
-    """pedagogical's λ̂, 90% interval, verdict and 2 log BF against maxent (blank for another model)."""
-    if teaching is None:
-        return "", "", "", ""
+def _teaching_line(teaching: dict) -> str:
+    """pedagogical's reading (verdict, 2 log BF against maxent, β under both) with λ̂ and its interval."""
     lo, hi = teaching["lambda_interval"]
-    return (f"{teaching['lambda_hat']:.3g}", f"{lo:.3g}–{hi:.3g}", teaching["verdict"],
-            f"{teaching['two_log_bayes_factor']:.1f}")
+    return (f"{teaching['reading']}; λ̂ = {teaching['lambda_hat']:.3g}, "
+            f"90% credible interval [{lo:.3g}, {hi:.3g}]")

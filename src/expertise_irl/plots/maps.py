@@ -67,6 +67,9 @@ DPI = 120
 
 
 # --------------------------------------------------------------------------- map
+#: Above this many βs the β marginal's ticks are rotated and only bars with mass are labelled.
+CROWDED_BETAS = 8
+
 def draw_map(ax: Axes, zone_map: ZoneMap, *, show_grid: bool = True, legend: bool = True) -> Axes:
     """Draw the cells of a zone map in the paper's colours.
 
@@ -302,10 +305,14 @@ def draw_beta_marginal(ax: Axes, betas, probs, *, beta_true: float | None = None
             ax.legend(loc="upper right", fontsize=7.5, frameon=False)
         else:
             title += rf",  $\beta^*$ = {beta_true:g} (not in set)"
+    crowded = b.size > CROWDED_BETAS  # many βs (a fine grid, an adaptive set): label what has mass
     for xi, pi in zip(x, p, strict=True):
-        ax.annotate(f"{pi:.2f}", (xi, pi), xytext=(0, 2), textcoords="offset points",
-                    ha="center", va="bottom", fontsize=7, color="#333")
-    ax.set_xticks(x, [f"{v:g}" for v in b])
+        if not crowded or pi >= 0.005:
+            ax.annotate(f"{pi:.2f}", (xi, pi), xytext=(0, 2), textcoords="offset points",
+                        ha="center", va="bottom", fontsize=7, color="#333")
+    ax.set_xticks(x, [f"{v:.2g}" if crowded else f"{v:g}" for v in b])
+    if crowded:
+        ax.tick_params(axis="x", labelrotation=70, labelsize=6.5)
     ax.set_xlabel(r"expertise temperature $\beta$  (low = expert)", fontsize=8.5)
     ax.set_ylabel("probability", fontsize=8.5)
     # headroom above the tallest bar's label for the legend
