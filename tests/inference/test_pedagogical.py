@@ -146,3 +146,14 @@ def test_teacher_refuses_a_negative_lambda_and_a_foreign_observer(task):
     small = P.observer(hyp, lp[:, :10])
     with pytest.raises(InputError, match="observer covers 10 states"):
         P.teacher_log_policy(mdp, hyp.thetas[0], 0.1, 0.1, small)
+
+
+def test_a_coarse_beta_grid_warns_unless_the_verdict_is_doing(task):
+    mdp, hyp, lp = task  # βs 0.1, 0.5, 2: 5× apart
+    teacher = P.teaching_posterior(lp, hyp, _episodes(mdp, hyp, lp, 1.0, seed=1))
+    assert teacher.verdict == "teaching"
+    (w,) = teacher.warnings()
+    assert "up to 5× apart" in w and "--betas" in w
+    fine = HypothesisSet(hyp.thetas, np.array([0.1, 0.15, 0.2]))
+    lp_fine = np.asarray(solve(mdp, fine.theta, fine.beta, tol=1e-10).log_policy)
+    assert P.teaching_posterior(lp_fine, fine, _episodes(mdp, hyp, lp, 1.0, seed=1)).warnings() == []

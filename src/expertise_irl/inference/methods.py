@@ -453,6 +453,7 @@ def _describe_discrete(fit: DiscreteFit, opts: DiscreteOptions, names) -> dict[s
     out: dict[str, Any] = {"diagnostics": {"warnings": discrete_warnings(fit.posterior, names)}}
     if fit.teaching is not None:  # beside beta_hat, which is the teaching model's (λ marginalised)
         out["teaching"] = fit.teaching.record(fit.posterior.log_policy)
+        out["diagnostics"]["warnings"] += fit.teaching.warnings()
     if fit.refined is not None:
         out["refinement"] = fit.refined.record
         out["diagnostics"]["warnings"] = fit.refined.warnings + out["diagnostics"]["warnings"]

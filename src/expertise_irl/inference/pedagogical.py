@@ -62,6 +62,8 @@ INTERVAL = (0.05, 0.95)
 #: Raftery's "strong"), and at or below which it is ``doing`` (their "positive", the other way).
 TEACHING_2LOGBF = 6.0
 DOING_2LOGBF = -2.0
+#: Neighbouring βs of the set further apart than this draw a warning with a verdict other than ``doing``.
+COARSE_BETA_RATIO = 2.0
 #: Elements of ``[H, states, actions]`` handled at once when the likelihood is summed.
 BLOCK = 2**22
 
@@ -191,6 +193,21 @@ class TeachingPosterior:
         """``teaching``, ``doing`` or ``undecided``, from 2 log BF (:data:`TEACHING_2LOGBF`)."""
         x = 2 * self.log_bayes_factor
         return "teaching" if x >= TEACHING_2LOGBF else "doing" if x <= DOING_2LOGBF else "undecided"
+
+    def warnings(self) -> list[str]:
+        """What may make a doer read as teaching: a β grid so coarse that λ takes up the misfit.
+
+        Returns:
+            One warning when neighbouring βs of the set are more than :data:`COARSE_BETA_RATIO`
+            apart and the verdict is not ``doing``, else none.
+        """
+        b = self.hypotheses.betas
+        ratio = float(np.max(b[1:] / b[:-1])) if len(b) > 1 else math.inf
+        if ratio <= COARSE_BETA_RATIO or self.verdict == "doing":
+            return []
+        return [f"teaching: the set's βs are up to {ratio:.3g}× apart, and a doer whose β falls between "
+                "them can read as teaching (λ takes up the misfit); name a finer --betas, e.g. 16 values "
+                "1.58× apart (docs/teaching.md)"]
 
     def belief(self, log_policy: np.ndarray, *, doer: bool = False):
         """The posterior over Ψ as a :class:`~.belief.DiscreteBelief`.
