@@ -10,27 +10,17 @@ import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke, ok
 from scipy.special import logsumexp
+from teaching_task import BETAS, THETAS, crossroads_task
 
 from expertise_irl.demos.csv_io import write_demos_csv
 from expertise_irl.demos.simulation import simulate
-from expertise_irl.hypotheses import HypothesisSet, theta_grid
 from expertise_irl.inference import pedagogical as P
 from expertise_irl.inference.evidence import compare_models, split_episodes, teaching_pair_log_likelihoods
-from expertise_irl.numerics import enable_float64
-from expertise_irl.planning.soft_vi import solve
-from expertise_irl.worlds.maps import resolve_world
-
-#: The set of ``--thetas 0,1 --betas 0.1,0.5,2`` (31 θ × 3 β on crossroads' five features).
-THETAS, BETAS = "0,1", "0.1,0.5,2"
 
 
 @pytest.fixture(scope="module")
 def task():
-    enable_float64()
-    mdp = resolve_world("crossroads").to_mdp()
-    hyp = HypothesisSet(theta_grid((0.0, 1.0), mdp.n_features), np.array([0.1, 0.5, 2.0]))
-    lp = np.asarray(solve(mdp, hyp.theta, hyp.beta).log_policy)
-    return mdp, hyp, lp
+    return crossroads_task()
 
 
 def episodes(task, lam: float, seed: int = 1, n: int = 10):

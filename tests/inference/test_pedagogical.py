@@ -1,27 +1,22 @@
-"""The teaching model's core (inference.pedagogical) against brute-force Bayes on the bundled crossroads map."""
+"""The teaching model's core (inference.pedagogical) against brute-force Bayes on the crossroads map."""
 
 import math
 
 import numpy as np
 import pytest
+from teaching_task import crossroads_task
 
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
-from expertise_irl.hypotheses import HypothesisSet, theta_grid
+from expertise_irl.hypotheses import HypothesisSet
 from expertise_irl.inference import pedagogical as P
 from expertise_irl.inference.belief import DiscreteBelief
-from expertise_irl.numerics import enable_float64
 from expertise_irl.planning.soft_vi import solve
-from expertise_irl.worlds.maps import resolve_world
 
 
 @pytest.fixture(scope="module")
 def task():
-    enable_float64()
-    mdp = resolve_world("crossroads").to_mdp()
-    hyp = HypothesisSet(theta_grid((0.0, 1.0), mdp.n_features), np.array([0.1, 0.5, 2.0]))
-    lp = np.asarray(solve(mdp, hyp.theta, hyp.beta, tol=1e-10).log_policy)
-    return mdp, hyp, lp
+    return crossroads_task(tol=1e-10)
 
 
 def _brute_informativeness(hyp, lp, prior):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from cli_helpers import assert_input_error, invoke, ok
 from scipy.special import logsumexp
+from teaching_task import crossroads_task
 
 from expertise_irl.demos.csv_io import read_demos_csv, write_demos_csv
 from expertise_irl.demos.simulation import simulate
@@ -21,7 +22,6 @@ from expertise_irl.inference import pedagogical as P
 from expertise_irl.numerics import enable_float64
 from expertise_irl.planning.soft_vi import solve
 from expertise_irl.userstudy.teaching import MODELS_TEACHING_COLUMNS, TEACHING_COLUMNS
-from expertise_irl.worlds.maps import resolve_world
 
 #: crossroads' five features; 31 θ × 3 β, every θ with a 0 component, so nobody's prior keeps one at 0
 SET = ("--thetas", "0,1", "--betas", "0.1,0.5,2")
@@ -29,11 +29,7 @@ SET = ("--thetas", "0,1", "--betas", "0.1,0.5,2")
 
 @pytest.fixture(scope="module")
 def task():
-    enable_float64()
-    mdp = resolve_world("crossroads").to_mdp()
-    hyp = HypothesisSet(theta_grid((0.0, 1.0), mdp.n_features), np.array([0.1, 0.5, 2.0]))
-    lp = np.asarray(solve(mdp, hyp.theta, hyp.beta).log_policy)
-    return mdp, hyp, lp
+    return crossroads_task()
 
 
 def episodes(task, lam: float, seed: int, n: int):
