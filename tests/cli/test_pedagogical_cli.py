@@ -77,7 +77,7 @@ def test_infer_refuses_in_one_line(teacher_csv, tmp_path, args, fragments):
 @pytest.mark.parametrize(("args", "fragments"), [
     (("--lambda", "0.3"), ("--lambda applies only to --model pedagogical",)),
     (("--observer-betas", "0.1"), ("--observer-betas applies only to --model pedagogical",)),
-    (("--model", "pedagogical", "--lambda", "-1"), ("--lambda must be a finite number >= 0",)),
+    (("--model", "pedagogical", "--lambda", "-1"), ("--lambda must be a number from 0 to 1000",)),
     (("--model", "pedagogical", "--observer-thetas", "x"), ("--observer-thetas",)),
     (("--model", "softmax"), ("--model must be one of", "pedagogical")),
 ])

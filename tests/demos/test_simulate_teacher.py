@@ -51,5 +51,5 @@ def test_batches_take_a_given_policy(task):
 
 def test_a_negative_teaching_weight_is_refused(task):
     mdp, _, obs = task
-    with pytest.raises(InputError, match="lambda must be a finite number >= 0"):
+    with pytest.raises(InputError, match="lambda must be a number from 0 to 1000"):
         simulate_teacher(mdp, THETA, 0.2, -0.1, 1, 0, observer=obs)

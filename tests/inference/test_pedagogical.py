@@ -121,8 +121,9 @@ def test_strong_teachers_read_as_teaching_and_doers_do_not(task):
     assert rec["p_teaching"] > 0.999 and rec["lambda_interval"] == [lo, hi]
 
 
-@pytest.mark.parametrize("spec, why", [("0.1,0.3", "must hold 0"), ("0", "must hold 0"), ("0,-1", ">= 0"),
-                                       ("0,x", "comma-separated numbers"), ("0,inf", ">= 0")])
+@pytest.mark.parametrize("spec, why", [("0.1,0.3", "must hold 0"), ("0", "must hold 0"),
+                                       ("0,-1", "from 0 to"), ("0,x", "comma-separated numbers"),
+                                       ("0,inf", "from 0 to"), ("0,1e308", "from 0 to 1000")])
 def test_bad_lambda_grids_are_refused(spec, why):
     with pytest.raises(InputError, match=why):
         P.parse_lambdas(spec)
@@ -136,8 +137,9 @@ def test_parse_lambdas_sorts_and_deduplicates():
 def test_teacher_refuses_a_negative_lambda_and_a_foreign_observer(task):
     mdp, hyp, lp = task
     obs = P.observer(hyp, lp)
-    with pytest.raises(InputError, match="lambda must be"):
-        P.teacher_log_policy(mdp, hyp.thetas[0], 0.1, -0.1, obs)
+    for lam in (-0.1, 1e308):
+        with pytest.raises(InputError, match="lambda must be a number from 0 to 1000"):
+            P.teacher_log_policy(mdp, hyp.thetas[0], 0.1, lam, obs)
     small = P.observer(hyp, lp[:, :10])
     with pytest.raises(InputError, match="observer covers 10 states"):
         P.teacher_log_policy(mdp, hyp.thetas[0], 0.1, 0.1, small)
@@ -149,6 +151,9 @@ def test_a_coarse_beta_grid_warns_unless_the_verdict_is_doing(task):
     assert teacher.verdict == "teaching"
     (w,) = teacher.warnings()
     assert "up to 5× apart" in w and "--betas" in w
+    one = HypothesisSet(hyp.thetas, np.array([0.1]))
+    lp_one = lp[::hyp.n_beta]  # the β = 0.1 column of the θ-major set
+    assert P.teaching_posterior(lp_one, one, _episodes(mdp, hyp, lp, 1.0, seed=1)).warnings() == []
     fine = HypothesisSet(hyp.thetas, np.array([0.1, 0.15, 0.2]))
     lp_fine = np.asarray(solve(mdp, fine.theta, fine.beta, tol=1e-10).log_policy)
     assert P.teaching_posterior(lp_fine, fine, _episodes(mdp, hyp, lp, 1.0, seed=1)).warnings() == []

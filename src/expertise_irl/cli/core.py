@@ -226,9 +226,11 @@ def _teacher_options(mdp, model: str, lam: float | None, thetas: str | None, bet
             if value is not None:
                 raise InputError(f"{flag_} applies only to --model pedagogical, not to --model {model}")
         return None
+    from ..planning.teaching import MAX_LAMBDA
+
     lam = 0.0 if lam is None else float(lam)
-    if not (math.isfinite(lam) and lam >= 0):
-        raise InputError(f"--lambda must be a finite number >= 0, got {lam:g}")
+    if not (math.isfinite(lam) and 0 <= lam <= MAX_LAMBDA):
+        raise InputError(f"--lambda must be a number from 0 to {MAX_LAMBDA:g}, got {lam:g}")
     try:
         th = resolve_thetas(thetas or DEFAULT_THETAS, mdp.n_features)
     except InputError as e:

@@ -19,6 +19,7 @@ from ._app import (
     _progress,
     _say,
     _solve_progress,
+    _warn,
     app,
     goal_reward_mode_of,
     handles_errors,
@@ -101,6 +102,8 @@ def compare_models_command(
     for f in cmp.fits:  # the teaching model's verdict, λ̂ and evidence against maxent: a line
         if f.teaching is not None:
             _say(f"{f.model}: {_teaching_line(f.teaching)}")
+            for w in f.teaching.get("warnings", []):
+                _warn(w)
     if out_path is not None:
         doc = {
             "version": __version__, "command": "compare-models", "feature_names": list(mdp.feature_names),

@@ -251,7 +251,8 @@ def teacher_log_evidence(posterior: pedagogical.TeachingPosterior) -> float:
 def teaching_entry(posterior: pedagogical.TeachingPosterior, log_policy: np.ndarray) -> dict:
     """The ``teaching`` entry of a pedagogical fit: the result's record
     (:meth:`.pedagogical.TeachingPosterior.record`) with ``two_log_bayes_factor`` (the evidence
-    against ``maxent``, teaching against doing) and ``log_evidence_by_lambda``.
+    against ``maxent``, teaching against doing), ``log_evidence_by_lambda`` and ``warnings``
+    (:meth:`.pedagogical.TeachingPosterior.warnings`).
 
     Args:
         posterior: the posterior over Ψ × Λ.
@@ -263,6 +264,7 @@ def teaching_entry(posterior: pedagogical.TeachingPosterior, log_policy: np.ndar
     rec = posterior.record(log_policy)
     rec["two_log_bayes_factor"] = 2 * rec["log_bayes_factor"]
     rec["log_evidence_by_lambda"] = posterior.log_evidence_by_lambda.tolist()
+    rec["warnings"] = posterior.warnings()
     return rec
 
 

@@ -39,6 +39,7 @@ from ..demos.trajectories import Trajectories
 from ..errors import InputError
 from ..hypotheses import HypothesisSet
 from ..planning.teaching import (
+    MAX_LAMBDA,
     Observer,
     observer,
     solved_observer,
@@ -50,8 +51,8 @@ from .posterior import beta_quantile, log_sum_exp
 
 # The model (the observer, the teacher's policy) lives in planning.teaching, below the simulator;
 # its names are this module's too.
-__all__ = ["LAMBDAS", "Observer", "TeachingPosterior", "lambda_log_prior", "observed_counts", "observer",
-           "parse_lambdas", "solved_observer", "teacher_log_policy", "teaching_log_likelihoods",
+__all__ = ["LAMBDAS", "MAX_LAMBDA", "Observer", "TeachingPosterior", "lambda_log_prior", "observed_counts",
+           "observer", "parse_lambdas", "solved_observer", "teacher_log_policy", "teaching_log_likelihoods",
            "teaching_log_policy", "teaching_posterior", "theta_predictive"]
 
 #: The default grid of teaching weights λ (reward units per nat); 0 is the doer.
@@ -89,8 +90,9 @@ def parse_lambdas(spec) -> np.ndarray:
     else:
         values = [float(x) for x in spec]
     lam = np.unique(np.asarray(values, dtype=np.float64))
-    if lam.size == 0 or not np.all(np.isfinite(lam)) or lam[0] < 0:
-        raise InputError(f"--lambdas must be finite numbers >= 0, got {spec!r}")
+    if lam.size == 0 or not np.all(np.isfinite(lam)) or lam[0] < 0 or lam[-1] > MAX_LAMBDA:
+        raise InputError(f"--lambdas must be numbers from 0 to {MAX_LAMBDA:g} (λ = 1 already pays a "
+                         f"step's reward per nat of the observer's belief), got {spec!r}")
     if lam[0] != 0 or lam.size < 2:
         raise InputError(f"--lambdas must hold 0 (the doer) and at least one λ > 0, got {spec!r}")
     return lam
@@ -202,8 +204,10 @@ class TeachingPosterior:
             apart and the verdict is not ``doing``, else none.
         """
         b = self.hypotheses.betas
-        ratio = float(np.max(b[1:] / b[:-1])) if len(b) > 1 else math.inf
-        if ratio <= COARSE_BETA_RATIO or self.verdict == "doing":
+        if len(b) == 1 or self.verdict == "doing":  # one β: no β between the set's to misfit
+            return []
+        ratio = float(np.max(b[1:] / b[:-1]))
+        if ratio <= COARSE_BETA_RATIO:
             return []
         return [f"teaching: the set's βs are up to {ratio:.3g}× apart, and a doer whose β falls between "
                 "them can read as teaching (λ takes up the misfit); name a finer --betas, e.g. 16 values "

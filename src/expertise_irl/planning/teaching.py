@@ -28,8 +28,13 @@ from scipy.special import logsumexp
 from ..errors import InputError
 from ..hypotheses import HypothesisSet
 
-__all__ = ["Observer", "observer", "solved_observer", "teacher_log_policy", "teaching_log_policy",
-           "theta_predictive"]
+__all__ = ["MAX_LAMBDA", "Observer", "observer", "solved_observer", "teacher_log_policy",
+           "teaching_log_policy", "theta_predictive"]
+
+
+#: The largest teaching weight taken: λ = 1 already pays a step's reward per nat of the observer's
+#: belief; far larger values mean nothing a person does and only overflow λ/β.
+MAX_LAMBDA = 1000.0
 
 
 def _lse(x, axis=None):
@@ -167,8 +172,8 @@ def teacher_log_policy(mdp, theta, beta: float, lam: float, observer_: Observer,
     """
     from ..planning.soft_vi import solve
 
-    if not (math.isfinite(lam) and lam >= 0):
-        raise InputError(f"lambda must be a finite number >= 0, got {lam:g}")
+    if not (math.isfinite(lam) and 0 <= lam <= MAX_LAMBDA):
+        raise InputError(f"lambda must be a number from 0 to {MAX_LAMBDA:g}, got {lam:g}")
     if observer_.log_predictive.shape != (mdp.n_states, mdp.n_actions):
         raise InputError(f"the observer covers {observer_.log_predictive.shape[0]} states, "
                          f"the task has {mdp.n_states}")

@@ -121,7 +121,8 @@ def teaching_estimates(manifest: Manifest, tlls, hyps, lambdas) -> dict[str, dic
         joint = tp.belief(empty)
         result = participant_result(joint, names, data, {"share": "both", "heldout": held,
                                                          "teaching": tp.record(empty)},
-                                    warnings + discrete_warnings(joint, names), [names[i] for i in zero])
+                                    warnings + discrete_warnings(joint, names) + tp.warnings(),
+                                    [names[i] for i in zero])
         per_task = []
         for e in episode_ll:
             b, _, _ = participant_posterior([e], hyp, zero, lambdas, 0)
