@@ -46,7 +46,7 @@ TUTORIAL_OUTPUTS = {
         "fig2.png",
     ],
     "teaching": [
-        "model pedagogical, λ=1, observer paper-real Θ × paper-sim B",   # simulate --lambda
+        "model pedagogical, λ=1, observer paper-real Θ × 0.01,0.0158",   # simulate --lambda
         "teacher  verdict teaching",                                      # infer's teaching record
         "doer     verdict doing",
         "pedagogical: demonstrations read as teaching",                   # compare-models
