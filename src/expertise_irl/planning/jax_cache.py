@@ -4,7 +4,11 @@ Compiling the solver, likelihood and sampler programs takes seconds per map; JAX
 compiled programs on disk and serve them to later processes. ``EXPERTISE_IRL_JAX_CACHE``
 names the directory (default ``$XDG_CACHE_HOME/expertise-irl/jax``, else
 ``~/.cache/expertise-irl/jax``); ``off`` disables it. Programs are keyed by JAX on their
-computation, options and JAX version, so a stale entry is never used.
+computation, options and JAX version, so a stale entry is never used. That key leaves out the
+host CPU, though, and a program compiled for one CPU's instructions (AVX-512, say) would be
+offered to a CPU without them; so each CPU (model and SIMD flags,
+:func:`.tuning.cpu_description`) has a folder of its own below the directory, and machines that
+share a home folder (a Dask cluster of unlike nodes) never load each other's programs.
 """
 
 from __future__ import annotations
@@ -16,6 +20,16 @@ from ..cache import user_cache_dir
 JAX_CACHE_ENV = "EXPERTISE_IRL_JAX_CACHE"
 
 _READY = False
+
+
+def cpu_folder() -> str:
+    """The cache's folder for this CPU: ``cpu-`` and 12 hex digits of its model and SIMD flags."""
+    import hashlib
+
+    from .tuning import cpu_description
+
+    cpu, flags = cpu_description()
+    return "cpu-" + hashlib.sha256(f"{cpu}|{flags}".encode()).hexdigest()[:12]
 
 
 def enable_jax_cache() -> None:
@@ -30,6 +44,7 @@ def enable_jax_cache() -> None:
         return
     if not where:
         where = str(user_cache_dir() / "jax")
+    where = os.path.join(where, cpu_folder())
     try:
         os.makedirs(where, exist_ok=True)
     except OSError:
