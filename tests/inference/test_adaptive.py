@@ -256,7 +256,12 @@ def test_known_start_log_likelihoods_are_not_solved_again(mdp, person):
     assert r.record["solved"] == full.record["solved"] - len(hyp)
     np.testing.assert_array_equal(r.hypotheses.thetas, full.hypotheses.thetas)
     np.testing.assert_array_equal(r.hypotheses.betas, full.hypotheses.betas)
-    np.testing.assert_allclose(r.log_likelihood, full.log_likelihood, rtol=1e-9)
+    # equal within their certified errors (a hypothesis eliminated at a screening stage is known
+    # only that well; the known ones were solved to 1e-8)
+    gap = np.abs(r.log_likelihood - full.log_likelihood)
+    assert np.all(gap <= r.log_likelihood_error + full.log_likelihood_error + 1e-6)
+    np.testing.assert_allclose(r.log_likelihood[~full.eliminated], full.log_likelihood[~full.eliminated],
+                               rtol=1e-9)
     with pytest.raises(InputError, match="keep_policies=False"):
         adaptive.refine_tasks([(mdp, trajs)], hyp, start_log_likelihood=known)
 
@@ -296,14 +301,19 @@ def test_a_cap_below_the_start_set_is_refused(mdp, person):
 def test_warm_starts_save_sweeps_and_leave_the_posterior_unchanged(mdp, person, monkeypatch):
     """New hypotheses start from their solved neighbours' values (interpolated in ln β between two
     solved β): fewer sweeps than cold starts, the same log-likelihoods (the pool's sweeps certify the
-    tolerance whatever the start, so both sets agree to the solver's 1e-8 nats)."""
+    tolerance whatever the start, so both agree within their certified errors, and the survivors to
+    the data's tolerance)."""
     _, _, trajs = person
     kw = {"theta_step": 1 / start_resolution(mdp.n_features)}
     warm = refine(mdp, trajs, start_set(mdp.n_features), **kw)
     monkeypatch.setattr(adaptive, "WARM_VALUE_BYTES", 0)  # nothing kept: every solve starts cold
     cold = refine(mdp, trajs, start_set(mdp.n_features), **kw)
     assert warm.record["solved"] == cold.record["solved"]
-    np.testing.assert_allclose(warm.log_likelihood, cold.log_likelihood, atol=1e-6)
+    kept = ~warm.eliminated & ~cold.eliminated  # the eliminated are known only within their bounds
+    assert kept.sum() >= 10
+    np.testing.assert_allclose(warm.log_likelihood[kept], cold.log_likelihood[kept], atol=1e-6)
+    gap = np.abs(warm.log_likelihood - cold.log_likelihood)
+    assert np.all(gap <= warm.log_likelihood_error + cold.log_likelihood_error)
     assert warm.record["rounds"][0]["sweeps"] == cold.record["rounds"][0]["sweeps"]  # the start: cold
     assert warm.record["sweeps"] == sum(e["sweeps"] for e in warm.record["rounds"])
 

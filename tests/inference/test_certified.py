@@ -9,7 +9,13 @@ import pytest
 from expertise_irl.demos.simulation import simulate
 from expertise_irl.errors import InputError
 from expertise_irl.hypotheses import BETA_PRESETS, HypothesisSet, resolve_thetas
-from expertise_irl.inference.certified import certified_log_likelihoods, data_tolerance
+from expertise_irl.inference.certified import (
+    certified_log_likelihoods,
+    data_tolerance,
+    error_weight,
+    state_weights,
+    telescoped_log_likelihood,
+)
 from expertise_irl.planning.soft_vi import solve
 from expertise_irl.planning.table_likelihood import log_likelihood
 from expertise_irl.worlds.zones import load_bundled, parse_map
@@ -33,7 +39,8 @@ def small():
 @pytest.mark.parametrize("beta", [1e-3, 1.0, 100.0])
 def test_the_bounds_hold_against_an_exact_solve(small, model, beta):
     """Solved to a loose 1e-3 nats, every hypothesis' log-likelihood lies within its certified
-    interval around the exact one (solved to 1e-12); the interval is 2·tol per observed action."""
+    interval around the exact one (solved to 1e-12): tol·Σ|w| for the models whose sum telescopes
+    (far narrower than the table's 2·tol per action), 2·tol per action for ``boltzmann``."""
     mdp, trajs = small
     rng = np.random.default_rng(int(beta * 1000) % 97)
     theta = rng.dirichlet(np.ones(mdp.n_features), size=6)
@@ -45,7 +52,41 @@ def test_the_bounds_hold_against_an_exact_solve(small, model, beta):
     assert finite.any()
     np.testing.assert_array_equal(np.isfinite(c.log_likelihood), finite)
     assert np.all(np.abs(c.log_likelihood[finite] - exact[finite]) <= c.error[finite])
-    assert np.all(c.error >= 2 * 1e-3 * len(trajs.state) - 1e-12)
+    n = len(trajs.state)
+    if model == "boltzmann":
+        assert c.error_weight == 2 * n
+    else:
+        assert c.error_weight == pytest.approx(np.abs(state_weights(mdp, [trajs])).sum())
+        assert c.error_weight < 0.1 * 2 * n
+    assert np.all(c.error >= 1e-3 * c.error_weight - 1e-12)
+
+
+@pytest.mark.parametrize("model", ["maxent", "maxent-relative"])
+@pytest.mark.parametrize("beta", [1e-3, 1.0, 100.0])
+def test_the_telescoped_sum_is_exact_at_the_solution_and_moves_by_at_most_its_weights(small, model, beta):
+    """At the exact values the telescoped log-likelihood equals the log-policy table's sum; values
+    off by at most δ move it by at most δ·Σ|w|, and by exactly that when every state's error takes
+    its weight's sign (the bound is attained, so it cannot be narrowed)."""
+    mdp, trajs = small
+    rng = np.random.default_rng(int(beta * 1000) % 89)
+    theta = rng.dirichlet(np.ones(mdp.n_features), size=4)
+    b = np.full(4, beta)
+    sol = solve(mdp, theta, b, tol=1e-12, model=model)
+    v = np.asarray(sol.value)
+    table = log_likelihood(np.asarray(sol.log_policy), trajs.state, trajs.action)
+    tele, rounding = telescoped_log_likelihood(mdp, [trajs], theta, b, v, model)
+    finite = np.isfinite(table)
+    assert finite.any() and np.all(rounding < 1e-6 * np.maximum(1.0, np.abs(tele)))
+    F = error_weight(mdp, [trajs], model)
+    atol = 4e-11 * F + rounding[finite].max()
+    np.testing.assert_allclose(tele[finite], table[finite], rtol=1e-9, atol=atol)
+    w = state_weights(mdp, [trajs])
+    delta = 0.05
+    worst, _ = telescoped_log_likelihood(mdp, [trajs], theta, b, v + delta * np.sign(w) * b[:, None], model)
+    np.testing.assert_allclose(worst - tele, delta * F, rtol=1e-9)
+    e = rng.uniform(-delta, delta, size=v.shape) * ~mdp.terminal
+    moved, _ = telescoped_log_likelihood(mdp, [trajs], theta, b, v + e * b[:, None], model)
+    assert np.all(np.abs(moved - tele) <= delta * F * (1 + 1e-9))
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +116,8 @@ def test_the_two_stage_posterior_equals_a_full_precision_one_within_its_bound(re
     assert np.max(np.abs(mine - exact)) <= c.probability_error
     assert c.eliminated.mean() > 0.5
     assert exact[c.eliminated].sum() < 1e-12
-    assert c.tol == pytest.approx(data_tolerance(len(trajs.state)))
+    assert c.tol == pytest.approx(data_tolerance(len(trajs.state), error_weight=c.error_weight))
+    assert c.screen_tols == (c.screen_tol,) and c.screen_tol > c.tol
     plain = solve(mdp, hyp.theta, hyp.beta).iterations.sum()
     assert c.sweeps.sum() < plain
     rec = c.record()
@@ -88,3 +130,21 @@ def test_a_given_tolerance_is_kept_and_bad_settings_are_refused(readme_person):
     assert c.tol == 1e-6 and c.screen_tol >= 1e-6
     with pytest.raises(InputError, match="elimination < probability_error"):
         data_tolerance(100, probability_error=1e-13)
+
+
+def test_several_screening_stages_keep_the_bound(readme_person, monkeypatch):
+    """With three screening widths (30, 3, 1 nats) the survivors of each stage go on to the next:
+    fewer hypotheses at each stage, every probability still within the bound of a full solve."""
+    from expertise_irl.inference import certified
+
+    mdp, trajs, hyp = readme_person
+    monkeypatch.setattr(certified, "SCREEN_WIDTHS", (30.0, 3.0, 1.0))
+    c = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta)
+    assert len(c.screen_tols) == 3
+    np.testing.assert_allclose(np.array(c.screen_tols) * c.error_weight, [30.0, 3.0, 1.0])
+    full = solve(mdp, hyp.theta, hyp.beta, tol=1e-10)
+    exact = _posterior(log_likelihood(np.asarray(full.log_policy), trajs.state, trajs.action))
+    assert np.max(np.abs(_posterior(c.log_likelihood) - exact)) <= c.probability_error <= 1e-6
+    assert exact[c.eliminated].sum() < 1e-12
+    one = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta, screen_tol=c.screen_tols[0])
+    assert c.sweeps[c.eliminated & one.eliminated].sum() == one.sweeps[c.eliminated & one.eliminated].sum()

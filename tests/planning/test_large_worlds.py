@@ -160,6 +160,33 @@ def test_the_pool_shrinks_to_the_memory_it_has():
     assert kernels.available_memory() > 0
 
 
+def test_a_set_too_large_for_memory_is_solved_in_batches_with_the_same_answer(monkeypatch):
+    """The level phase's ``[H, rows]`` copies are counted: with the memory's share room for fewer
+    hypotheses than asked, the solve runs in batches (seen by the calls), each hypothesis' values,
+    policy and sweeps as in one pass, and progress counts up to H."""
+    mdp = generate_floor_plan(16, seed=1).to_mdp()
+    rng = np.random.default_rng(3)
+    theta = rng.dirichlet(np.ones(3), size=11)
+    beta = np.exp(rng.uniform(np.log(0.1), np.log(3.0), size=11))
+    one = solve(mdp, theta, beta, method="levels")
+    assert soft_vi.batch_limit(mdp, memory=10**15) > 11
+    monkeypatch.setattr(soft_vi, "MIN_BATCH", 4)
+    monkeypatch.setattr(kernels, "available_memory", lambda: 1)
+    assert soft_vi.batch_limit(mdp) == 4
+    calls, ticks = [], []
+    inner = soft_vi._solve_all
+    monkeypatch.setattr(soft_vi, "_solve_all",
+                        lambda m, th, b, **kw: calls.append(len(b)) or inner(m, th, b, **kw))
+    batched = solve(mdp, theta, beta, method="levels", progress=lambda d, t: ticks.append((d, t)))
+    assert calls == [4, 4, 3]
+    np.testing.assert_allclose(batched.value, one.value, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(batched.iterations, one.iterations)
+    assert np.array_equal(np.isfinite(batched.log_policy), np.isfinite(one.log_policy))
+    fin = np.isfinite(one.log_policy)
+    np.testing.assert_allclose(batched.log_policy[fin], one.log_policy[fin], rtol=0, atol=1e-12)
+    assert ticks[-1] == (11, 11) and all(t == 11 for _, t in ticks)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("method", ["jumps", "levels"])
 @pytest.mark.parametrize("model", ["maxent-relative", "boltzmann"])

@@ -2,30 +2,47 @@
 
 A person's demonstrations put most hypotheses of a set hundreds of nats below the best one;
 their values need only be known well enough to prove that. :func:`certified_log_likelihoods`
-solves in two stages.
+solves in stages.
 
-**The bound.** The solver stops a hypothesis when a plain Gauss–Seidel sweep changes its scaled
-values v = V/β by at most ``tol·(1 − γ)/γ`` (or by the floating-point floor ``8·eps·max|v|``); a
-sweep is a γ-contraction, so the values are then within ``tol_h = max(tol, 8·eps·max|v|·γ/(1 − γ))``
-of the solution. A log-probability ``log π(a|s) = q(s, a) − logsumexp_a' q(s, a')`` with ``q =
-r + γ v[next]`` is then within ``2γ·tol_h ≤ 2·tol_h`` of the exact one (q moves by at most γ·tol_h
-and logsumexp is 1-Lipschitz), so the log-likelihood of N observed actions lies within
-``e_h = 2·tol_h·N`` of its exact value: the certified interval ``[LL_h − e_h, LL_h + e_h]``.
+**The values' bound.** The solver stops a hypothesis when a plain Gauss–Seidel sweep changes its
+scaled values v = V/β by at most ``tol·(1 − γ)/γ`` (or by the floating-point floor
+``8·eps·max|v|``); a sweep is a γ-contraction, so the values are then within ``tol_h = max(tol,
+8·eps·max|v|·γ/(1 − γ))`` of the solution: ``|e(s)| ≤ tol_h`` with ``e = v − v*``, and ``e = 0``
+exactly at terminal states (the solver's zero row).
 
-**Stage 1 (screen).** Every hypothesis is solved to ``screen_tol`` (by default the tolerance
-whose interval is ±:data:`SCREEN_WIDTH` nats wide for these demonstrations, never tighter than
-the final one). With log prior weights ``w_h``, the lower bounds give the best certain log mass
-``M = max_h (LL_h − e_h + w_h)``; a hypothesis whose upper bound ``LL_h + e_h + w_h`` lies below
-``M + ln(elimination / H)`` has posterior probability below ``elimination / H`` whatever its
-exact values, and is **eliminated**: it keeps its screened values and stops.
+**The log-likelihood's bound, telescoped** (``maxent`` and ``maxent-relative``). At the solution
+these models' log-policy is ``log π*(a|s) = r(s, a) + γ v*(s') − v*(s) − c(s)``, with ``s'`` the
+move's successor, ``r = R/β`` and ``c(s) = 0`` (``maxent``) or ``log |A(s)|`` (``maxent-relative``).
+So the log-likelihood of the observed moves ``(s_t, a_t, s'_t)`` is a linear function of the
+values, and the same sum taken with the solver's values,
 
-**Stage 2 (finish).** The survivors continue from their screened values to the final tolerance:
-``tol`` when given, else the one the demonstrations need for every posterior probability to be
-within ``probability_error`` of the exact one: with every log-likelihood within ε of its exact
-value, each probability is within ``e^{2ε} − 1`` of it (and the eliminated mass, at most
-``elimination``, moves the rest by at most that), so ``ε = ln(1 + probability_error −
-elimination)/2`` and ``tol = ε/(2N)``. The result reports the bound actually reached, from each
-hypothesis' own ``tol_h``.
+    LL = Σ_t [r(s_t, a_t) + γ v(s'_t) − v(s_t) − c(s_t)] = Σ_t [r − c] + Σ_s w_s v(s),
+    w_s = γ·#{t: s'_t = s} − #{t: s_t = s},
+
+differs from the exact one by ``Σ_s w_s e(s)``, at most ``tol_h·Σ_s |w_s|`` over the non-terminal
+states. Along a path each state is left once and reached once, so its weight is ``γ − 1``: a
+demonstration of N moves in E episodes has ``Σ|w| ≈ 2E + (1 − γ)·N``, against ``2N`` for the
+bound of the log-policy table (each ``log π = q − logsumexp q`` within ``2γ·tol_h``), which is what
+``boltzmann`` (``v = max q``, so the sum does not telescope) keeps: there ``LL`` is the table's sum
+and the bound ``2·tol_h·N``. At γ = 0.99 with 1,500 moves in 3 episodes that is 21·tol_h against
+3,000·tol_h. Where an observed action is unavailable, LL is −inf either way. The bound adds the
+rounding of the sums (``64·eps`` times the sum of their terms' magnitudes).
+
+**Screening stages.** Every hypothesis is solved to the tolerance whose interval is
+±``SCREEN_WIDTHS[0]`` nats wide for these demonstrations; with log prior weights ``l_h``, the
+lower bounds give the best certain log mass ``M = max_h (LL_h − err_h + l_h)``, and a hypothesis
+whose upper bound ``LL_h + err_h + l_h`` lies below ``M + ln(elimination / H)`` has posterior
+probability below ``elimination / H`` whatever its exact values, and is **eliminated**: it keeps
+its values and stops. The others continue from their values to the next, narrower width, and the
+test is made again (no stage is tighter than the final tolerance; ``screen_tol`` gives one stage).
+
+**Finish.** The survivors continue to the final tolerance: ``tol`` when given, else the one the
+demonstrations need for every posterior probability to be within ``probability_error`` of the
+exact one: with every log-likelihood within ε of its exact value, each probability is within
+``e^{2ε} − 1`` of it (and the eliminated mass, at most ``elimination``, moves the rest by at most
+that), so ``ε = ln(1 + probability_error − elimination)/2`` and ``tol = 0.99·ε/Σ|w|`` (1% of ε
+left for the rounding). The result reports
+the bound actually reached, from each hypothesis' own ``tol_h``.
 """
 
 from __future__ import annotations
@@ -39,8 +56,14 @@ import numpy as np
 from ..errors import InputError
 from ..mdp import TabularMDP
 
-#: Half-width (nats) of the screening stage's log-likelihood intervals.
-SCREEN_WIDTH = 1.0
+#: Half-widths (nats) of the screening stages' log-likelihood intervals, widest first. One stage:
+#: at 100 × 100 and 200 × 200 more stages (30 then 1 nats, 300 then 10 then 1) saved sweeps but
+#: cost more in the new shapes compiled for the few hypotheses each later stage solves.
+SCREEN_WIDTHS = (3.0,)
+#: The last (narrowest) screening width.
+SCREEN_WIDTH = SCREEN_WIDTHS[-1]
+#: The models whose log-likelihood telescopes along a path (module docstring).
+TELESCOPING_MODELS = ("maxent", "maxent-relative")
 #: The posterior mass every eliminated hypothesis together may hold at most (relative to the best).
 ELIMINATION = 1e-12
 #: The default bound on the error of every reported posterior probability.
@@ -48,6 +71,9 @@ PROBABILITY_ERROR = 1e-6
 #: Batches are padded to 64 × (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, …) hypotheses: a few shapes for JAX to
 #: compile, at most a third of padding.
 BUCKET = 64
+#: The share of the data's log-likelihood error ε that the solve may use; the rest is left for the
+#: rounding of the sums.
+ROUNDING_SHARE = 0.99
 #: The tightest tolerance a data-set tolerance goes to (the values' floating-point floor decides
 #: below it anyway).
 MIN_TOL = 1e-13
@@ -58,16 +84,21 @@ class Certified:
     """Log-likelihoods of H hypotheses with certified error bounds (see the module docstring).
 
     Attributes:
-        log_policy: per map, ``[H, S, A]`` the log-policies (eliminated ones to the screening
+        log_policy: per map, ``[H, S, A]`` the log-policies (eliminated ones to their screening
             tolerance).
         value: per map, ``[H, S]`` the values (reward units).
-        log_likelihood: ``[H]`` log P(Ξ | θ_h, β_h) summed over the maps.
+        log_likelihood: ``[H]`` log P(Ξ | θ_h, β_h) summed over the maps (telescoped for
+            :data:`TELESCOPING_MODELS`, else the log-policy table's sum).
         error: ``[H]`` certified bound on |log_likelihood − exact|.
-        eliminated: ``[H]`` whether the hypothesis stopped at the screening stage.
-        screen_tol, tol: the two stages' tolerances (nats on V/β).
+        eliminated: ``[H]`` whether the hypothesis stopped at a screening stage.
+        screen_tol: the first (loosest) screening stage's tolerance (nats on V/β).
+        tol: the survivors' final tolerance.
         probability_error: a bound on the error of every posterior probability computed from
             these log-likelihoods (with the log prior weights given).
-        sweeps: ``[H]`` backups spent on each hypothesis, both stages.
+        sweeps: ``[H]`` backups spent on each hypothesis, all stages.
+        screen_tols: every screening stage's tolerance, loosest first.
+        error_weight: Σ|w| of the demonstrations: each log-likelihood is within ``error_weight·tol_h``
+            of the exact one (module docstring).
     """
 
     log_policy: tuple[np.ndarray, ...]
@@ -79,11 +110,14 @@ class Certified:
     tol: float
     probability_error: float
     sweeps: np.ndarray
+    screen_tols: tuple[float, ...] = ()
+    error_weight: float = math.nan
 
     def record(self) -> dict:
         """What a result document states about it."""
         return {"eliminated": int(self.eliminated.sum()), "hypotheses": int(self.eliminated.size),
-                "screen_tol": self.screen_tol, "tol": self.tol, "probability_error": self.probability_error,
+                "screen_tol": self.screen_tol, "screen_tols": list(self.screen_tols), "tol": self.tol,
+                "probability_error": self.probability_error, "error_weight": self.error_weight,
                 "max_log_likelihood_error": float(self.error[~self.eliminated].max(initial=0.0)),
                 "sweeps": int(self.sweeps.sum())}
 
@@ -101,15 +135,69 @@ def bucket_size(n: int) -> int:
         scale *= 2
 
 
+def stage_size(n: int) -> int:
+    """The padded size of a later stage of ``n`` hypotheses: the next power of two below
+    :data:`BUCKET` (a padded copy is solved in full, so few survivors must not fill 64 lanes), else
+    :func:`bucket_size`."""
+    return 1 << max(n - 1, 0).bit_length() if n < BUCKET else bucket_size(n)
+
+
 def data_tolerance(n_actions: int, probability_error: float = PROBABILITY_ERROR,
-                   elimination: float = ELIMINATION) -> float:
+                   elimination: float = ELIMINATION, *, error_weight: float | None = None) -> float:
     """The tolerance that keeps every posterior probability within ``probability_error`` of the
-    exact one for ``n_actions`` observed actions (module docstring)."""
+    exact one for ``n_actions`` observed actions (module docstring): ``ε/error_weight``, with the
+    table's weight ``2·n_actions`` when ``error_weight`` (:func:`error_weight`) is not given."""
     if not 0 < elimination < probability_error < 1:
         raise InputError(f"need 0 < elimination < probability_error < 1, got {elimination:g} and "
                          f"{probability_error:g}")
-    eps = math.log1p(probability_error - elimination) / 2
-    return max(eps / (2 * max(n_actions, 1)), MIN_TOL)
+    eps = ROUNDING_SHARE * math.log1p(probability_error - elimination) / 2
+    weight = 2 * max(n_actions, 1) if error_weight is None else max(float(error_weight), 1e-300)
+    return max(eps / weight, MIN_TOL)
+
+
+def _moves(mdp: TabularMDP, shown) -> tuple[np.ndarray, np.ndarray]:
+    """The observed states and actions of ``shown`` (a list of Trajectories), concatenated."""
+    states = np.concatenate([np.asarray(t.state, np.int64) for t in shown] or [np.zeros(0, np.int64)])
+    actions = np.concatenate([np.asarray(t.action, np.int64) for t in shown] or [np.zeros(0, np.int64)])
+    return states, actions
+
+
+def state_weights(mdp: TabularMDP, shown) -> np.ndarray:
+    """``[S]`` the weights ``w_s = γ·#{t: s'_t = s} − #{t: s_t = s}`` of the telescoped
+    log-likelihood (module docstring), 0 at terminal states; moves whose action is unavailable
+    (impossible under every hypothesis) are left out."""
+    states, actions = _moves(mdp, shown)
+    nxt = mdp.next_state[states, actions] if len(states) else np.zeros(0, np.int64)
+    ok = (nxt >= 0) & ~mdp.terminal[states]
+    w = mdp.gamma * np.bincount(nxt[ok], minlength=mdp.n_states) - np.bincount(states, minlength=mdp.n_states)
+    return np.where(mdp.terminal, 0.0, w)
+
+
+def error_weight(mdp: TabularMDP, shown, model: str = "maxent") -> float:
+    """The factor F with |LL − exact| ≤ F·tol_h for values within ``tol_h`` (module docstring):
+    ``Σ_s |w_s|`` for :data:`TELESCOPING_MODELS`, ``2N`` for the others."""
+    if model in TELESCOPING_MODELS:
+        return float(np.abs(state_weights(mdp, shown)).sum())
+    return 2.0 * sum(len(t.state) for t in shown)
+
+
+def telescoped_log_likelihood(mdp: TabularMDP, shown, theta, beta, value, model: str = "maxent"
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """``([H] LL, [H] rounding bound)``: the telescoped log-likelihood of the moves of ``shown``
+    (Trajectories) from values ``value [H, S]`` (reward units) of ``(theta [H, K], beta [H])``;
+    finite even where a move is impossible (the caller takes −inf from the table)."""
+    states, actions = _moves(mdp, shown)
+    basis = mdp.reward_basis()[states, actions].sum(axis=0)  # [K'] the observed moves' features
+    rew = mdp.reward_weights(theta) @ basis  # [H] Σ_t R(s_t, a_t)
+    w = state_weights(mdp, shown)
+    support = np.flatnonzero(w)
+    vw = value[:, support] * w[support]
+    const = 0.0
+    if model == "maxent-relative":
+        const = float(np.log(np.maximum(mdp.available[states].sum(axis=1), 1)).sum())
+    ll = (rew + vw.sum(axis=1)) / beta - const
+    scale = (np.abs(mdp.reward_weights(theta)) @ np.abs(basis) + np.abs(vw).sum(axis=1)) / beta + const
+    return ll, 64 * np.finfo(np.float64).eps * (scale + len(states))
 
 
 def _reached(mdp: TabularMDP, value: np.ndarray, beta: np.ndarray, tol: float) -> np.ndarray:
@@ -124,55 +212,94 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
                               screen_tol: float | None = None, elimination: float = ELIMINATION,
                               probability_error: float = PROBABILITY_ERROR, v_init=None,
                               best_known: float = -math.inf, progress=None, **solve_kwargs) -> Certified:
-    """Two-stage solve of ``(theta [H, K], beta [H])`` on every map of ``tasks`` (``(mdp,
+    """Staged solve of ``(theta [H, K], beta [H])`` on every map of ``tasks`` (``(mdp,
     [Trajectories, ...])`` pairs sharing the features), with certified log-likelihood bounds
     and elimination (module docstring). ``tol``: the survivors' tolerance (default: the data's);
+    ``screen_tol``: one screening stage at this tolerance (default: one per :data:`SCREEN_WIDTHS`);
     ``log_prior``: ``[H]`` log prior weights (default equal); ``v_init``: per map ``[H, S]``
     start values; ``best_known``: a log mass (log-likelihood + log prior weight) certainly reached by
     a hypothesis solved before, outside this batch (hypotheses below it are eliminated too);
-    ``progress(done, total)`` hears the screening stage; ``solve_kwargs`` go to
+    ``progress(done, total)`` hears the first screening stage; ``solve_kwargs`` go to
     :func:`~expertise_irl.planning.soft_vi.solve`."""
-    from ..planning.soft_vi import solve
-    from ..planning.table_likelihood import log_likelihood
-
     theta, beta = np.atleast_2d(np.asarray(theta, float)), np.atleast_1d(np.asarray(beta, float))
     H = len(beta)
+    model = solve_kwargs.get("model", "maxent")
+    weight = sum(error_weight(mdp, shown, model) for mdp, shown in tasks)
     n = sum(len(t.state) for _, shown in tasks for t in shown)
-    final = data_tolerance(n, probability_error, elimination) if tol is None else float(tol)
-    screen = max(SCREEN_WIDTH / (2 * max(n, 1)), final) if screen_tol is None else max(screen_tol, final)
+    final = float(tol) if tol is not None else data_tolerance(n, probability_error, elimination,
+                                                              error_weight=weight)
+    if screen_tol is None:
+        screens = sorted({max(w / max(weight, 1e-300), final) for w in SCREEN_WIDTHS}, reverse=True)
+    else:
+        screens = [max(screen_tol, final)]
     prior = np.zeros(H) if log_prior is None else np.asarray(log_prior, float)
-
-    def stage(idx, t, starts, tick=None):
-        out = []
-        for g, (mdp, shown) in enumerate(tasks):
-            v0 = None if starts is None else starts[g][idx]
-            sol = solve(mdp, theta[idx], beta[idx], tol=t, v_init=v0, progress=tick, **solve_kwargs)
-            lp, v = np.asarray(sol.log_policy), np.asarray(sol.value)
-            ll = sum(log_likelihood(lp, tr.state, tr.action) for tr in shown)
-            errs = 2 * _reached(mdp, v, beta[idx], t) * sum(len(tr.state) for tr in shown)
-            out.append((lp, v, ll, errs, np.asarray(sol.iterations)))
-        return out
-
-    first = stage(np.arange(H), screen, v_init, progress)
-    ll = sum(o[2] for o in first)
-    err = sum(o[3] for o in first)
-    sweeps = sum(o[4] for o in first).astype(np.int64)
-    lower, upper = ll - err + prior, ll + err + prior
-    finite = np.isfinite(lower)
-    best = max(lower[finite].max() if finite.any() else -np.inf, best_known)
-    gone = upper < best + math.log(elimination / H) if np.isfinite(best) else np.zeros(H, bool)
+    st = _Stages(tasks, theta, beta, solve_kwargs, H)
+    st.run(np.arange(H), screens[0], v_init, progress)
+    gone = np.zeros(H, bool)
+    for t in [*screens[1:], final]:
+        gone |= st.eliminated(prior, best_known, elimination) & ~gone
+        keep = np.flatnonzero(~gone)
+        if t < st.tol_of[keep].max(initial=0.0) and keep.size:
+            st.run(keep, t, st.values, None)
     keep = np.flatnonzero(~gone)
-    policies, values = [o[0].copy() for o in first], [o[1].copy() for o in first]
-    if final < screen and keep.size:
-        m = keep.size  # padded with the last survivor to a bucket's size: few shapes to compile
-        padded = np.concatenate([keep, np.repeat(keep[-1:], bucket_size(m) - m)])
-        second = [tuple(x[:m] for x in o) for o in stage(padded, final, values)]
-        ll, err = ll.copy(), err.copy()
-        ll[keep] = sum(o[2] for o in second)
-        err[keep] = sum(o[3] for o in second)
-        sweeps[keep] += sum(o[4] for o in second)
-        for g, o in enumerate(second):
-            policies[g][keep], values[g][keep] = o[0], o[1]
-    eps = float(err[keep].max(initial=0.0)) if np.isfinite(err[keep]).all() else math.inf
+    eps = float(st.err[keep].max(initial=0.0)) if np.isfinite(st.err[keep]).all() else math.inf
     bound = math.expm1(2 * eps) + (elimination if gone.any() else 0.0)
-    return Certified(tuple(policies), tuple(values), ll, err, gone, screen, final, bound, sweeps)
+    return Certified(tuple(st.policies), tuple(st.values), st.ll, st.err, gone, screens[0], final, bound,
+                     st.sweeps, tuple(screens), weight)
+
+
+class _Stages:
+    """The running state of a staged solve: every hypothesis' latest values, log-policies,
+    log-likelihood and bound, and the tolerance it was last solved to."""
+
+    def __init__(self, tasks, theta, beta, solve_kwargs, H):
+        self.tasks, self.theta, self.beta, self.kw = tasks, theta, beta, solve_kwargs
+        self.model = solve_kwargs.get("model", "maxent")
+        self.ll, self.err = np.zeros(H), np.zeros(H)
+        self.sweeps = np.zeros(H, np.int64)
+        self.tol_of = np.full(H, math.inf)
+        self.policies: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+
+    def run(self, idx: np.ndarray, tol: float, starts, progress) -> None:
+        """Solve hypotheses ``idx`` to ``tol`` from ``starts`` (per map, ``[H, S]`` or None); a later
+        stage is padded with its last hypothesis to :func:`stage_size` (few shapes to compile)."""
+        from ..planning.soft_vi import solve
+        from ..planning.table_likelihood import log_likelihood
+
+        m = idx.size
+        padded = idx if not self.values else np.concatenate([idx, np.repeat(idx[-1:], stage_size(m) - m)])
+        th, be = self.theta[padded], self.beta[padded]
+        ll, err, sweeps = np.zeros(m), np.zeros(m), np.zeros(m, np.int64)
+        for g, (mdp, shown) in enumerate(self.tasks):
+            v0 = None if starts is None else starts[g][padded]
+            sol = solve(mdp, th, be, tol=tol, v_init=v0, progress=progress, **self.kw)
+            lp, v = np.asarray(sol.log_policy)[:m], np.asarray(sol.value)[:m]
+            table = sum(log_likelihood(lp, tr.state, tr.action) for tr in shown)
+            reached = _reached(mdp, v, be[:m], tol)
+            if self.model in TELESCOPING_MODELS:
+                tele, rounding = telescoped_log_likelihood(mdp, shown, th[:m], be[:m], v, self.model)
+                ll += np.where(np.isfinite(table), tele, -np.inf)
+                err += reached * error_weight(mdp, shown, self.model) + rounding
+            else:
+                ll += table
+                err += 2 * reached * sum(len(tr.state) for tr in shown)
+            sweeps += np.asarray(sol.iterations)[:m]
+            if len(self.policies) <= g:
+                self.policies.append(lp.copy())
+                self.values.append(v.copy())
+            else:
+                self.policies[g][idx], self.values[g][idx] = lp, v
+        self.ll[idx], self.err[idx], self.tol_of[idx] = ll, err, tol
+        self.sweeps[idx] += sweeps
+
+    def eliminated(self, prior: np.ndarray, best_known: float, elimination: float) -> np.ndarray:
+        """``[H]`` whether each hypothesis' upper bound lies below the best lower bound by enough
+        that its posterior probability is certainly below ``elimination / H``."""
+        H = self.ll.size
+        lower, upper = self.ll - self.err + prior, self.ll + self.err + prior
+        finite = np.isfinite(lower)
+        best = max(lower[finite].max() if finite.any() else -np.inf, best_known)
+        if not np.isfinite(best):
+            return np.zeros(H, bool)
+        return upper < best + math.log(elimination / H)

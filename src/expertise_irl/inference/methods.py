@@ -298,10 +298,10 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
     hyp = _setup_discrete(mdp, opts, seed) if setup is None else setup
     if opts.model == PEDAGOGICAL:
         return _fit_teaching(mdp, trajs, hyp, opts, progress)
-    refined = certified = None
+    refined = certified = solved_ll = None
     if opts.refines:
         refined = refined_set(mdp, trajs, hyp, opts, progress)
-        hyp = refined.hypotheses
+        hyp, solved_ll = refined.hypotheses, refined.log_likelihood
         start = DiscreteBelief.from_log_policy(hyp, refined.log_policy, prior=refined.prior)
     elif opts.per_action or opts.expertise == Expertise.CHANGING:
         # every hypothesis matters somewhere (early in the trace, in some episode): all to one tolerance
@@ -315,7 +315,11 @@ def _fit_discrete(mdp, trajs, opts: DiscreteOptions, seed: Seed, progress: Progr
         cert = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta, tol=opts.tol,
                                          chunk_size=opts.chunk_size, model=opts.model, progress=progress)
         start, certified = DiscreteBelief.from_log_policy(hyp, cert.log_policy[0]), cert.record()
+        solved_ll = cert.log_likelihood
     post = start.update(trajs, per_action=opts.per_action)
+    if solved_ll is not None and not opts.per_action:  # the certified sums, not the table's (certified.py)
+        post = dataclasses.replace(post, log_likelihood=np.where(np.isfinite(post.log_likelihood), solved_ll,
+                                                                 -np.inf))
     trace = start.trace(trajs) if opts.per_action else None
     changing = None
     if opts.expertise == Expertise.CHANGING:

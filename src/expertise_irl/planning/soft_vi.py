@@ -55,6 +55,10 @@ DEFAULT_TOL = 1e-8
 #: With ``float32_start``, sets at least this large are solved in float32 first, then in float64 from there
 #: (smaller ones would pay the float32 kernels' compilation for little gain).
 FLOAT32_START_MIN = 512
+#: Copies of ``[H, rows]`` start values one pass of the solver holds at once (:func:`batch_limit`).
+START_COPIES = 8
+#: The fewest hypotheses a pass is cut down to for memory: the largest pool of lanes.
+MIN_BATCH = 256
 #: Sets at least this large measure the machine's lane width if none is known yet
 #: (:mod:`expertise_irl.planning.tuning`); smaller ones use the default width.
 TUNE_MIN = 64
@@ -308,8 +312,37 @@ def _solve_two_phase(mdp, theta, beta, progress, opts) -> SoftSolution:
     return sol._replace(iterations=sol.iterations + rough.iterations)
 
 
-def _solve(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
-           over_relax, lanes, method="sweeps") -> SoftSolution:
+def batch_limit(mdp: TabularMDP, memory: int | None = None) -> int:
+    """The most hypotheses one pass of the solver takes at once: as many as keep their
+    :data:`START_COPIES` copies of ``[H, rows]`` start values (the caller's start, the level or jump
+    phase's input, output and padding, the pool's input and output) within
+    :data:`.kernels.MEMORY_SHARE` of ``memory`` (default: :func:`.kernels.available_memory`), and
+    never fewer than :data:`MIN_BATCH` (a whole pool of lanes)."""
+    memory = kernel.available_memory() if memory is None else memory
+    per_hypothesis = START_COPIES * (mdp.n_states + 1) * 8
+    return max(MIN_BATCH, int(kernel.MEMORY_SHARE * memory) // per_hypothesis)
+
+
+def _solve(mdp, theta, beta, *, v_init, progress, **opts) -> SoftSolution:
+    """:func:`_solve_all` in batches of at most :func:`batch_limit` hypotheses, in the order given,
+    into one answer (each hypothesis' sweeps are its own lane's, so batching changes no result)."""
+    H, limit = len(beta), batch_limit(mdp)
+    if H <= limit:
+        return _solve_all(mdp, theta, beta, v_init=v_init, progress=progress, **opts)
+    value, log_pi = np.empty((H, mdp.n_states)), np.empty((H, mdp.n_states, mdp.n_actions))
+    iters = np.empty(H, dtype=np.int64)
+    for lo in range(0, H, limit):
+        hi = min(lo + limit, H)
+        tick = None if progress is None else (lambda done, _, lo=lo: progress(lo + done, H))
+        part = _solve_all(mdp, theta[lo:hi], beta[lo:hi], v_init=None if v_init is None else v_init[lo:hi],
+                          progress=tick, **opts)
+        value[lo:hi], log_pi[lo:hi], iters[lo:hi] = part.value, part.log_policy, part.iterations
+        del part
+    return SoftSolution(value, log_pi, iters, beta.copy(), opts["model"])
+
+
+def _solve_all(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
+               over_relax, lanes, method="sweeps") -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
