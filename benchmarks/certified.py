@@ -9,7 +9,7 @@ hypotheses); with ``--fullset``, the README's person (crossroads, θ* = (0.5, 0.
 20 episodes, seed 1) scored with the full paper-sim set on ``zones30`` (18,186 hypotheses; the
 person simulated there with the same seed). For each, in one process after one warm-up solve of
 the shapes: ``plain`` = :func:`~expertise_irl.planning.soft_vi.solve` of every hypothesis to 1e-8
-(the solve before certification), ``certified`` =
+by sweeps alone (the solve before certification and Newton's finish), ``certified`` =
 :func:`~expertise_irl.inference.certified.certified_log_likelihoods` with its defaults, and the
 reference, every hypothesis to 1e-10 with no elimination. Reported: seconds and sweeps of each,
 the hypotheses eliminated, the certified bound on every probability, and the largest difference
@@ -42,7 +42,7 @@ def posterior(ll: np.ndarray) -> np.ndarray:
 
 def timed_solve(mdp, hyp, trajs, tol):
     t0 = time.perf_counter()
-    sol = solve(mdp, hyp.theta, hyp.beta, tol=tol)
+    sol = solve(mdp, hyp.theta, hyp.beta, tol=tol, newton=False)
     ll = log_likelihood(np.asarray(sol.log_policy), trajs.state, trajs.action)
     return time.perf_counter() - t0, int(sol.iterations.sum()), posterior(ll)
 

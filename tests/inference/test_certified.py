@@ -148,3 +148,21 @@ def test_several_screening_stages_keep_the_bound(readme_person, monkeypatch):
     assert exact[c.eliminated].sum() < 1e-12
     one = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta, screen_tol=c.screen_tols[0])
     assert c.sweeps[c.eliminated & one.eliminated].sum() == one.sweeps[c.eliminated & one.eliminated].sum()
+
+
+def test_the_survivors_finish_by_newton_on_a_large_map_with_the_same_bound(small, monkeypatch):
+    """Where the map counts as large, the finish takes Newton steps (recorded) and every
+    log-likelihood still lies within its certified interval around the exact one."""
+    from expertise_irl.planning import soft_vi
+
+    mdp, trajs = small
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_STATES", 1)
+    monkeypatch.setattr(soft_vi, "_backend", lambda: "cpu")
+    rng = np.random.default_rng(11)
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=12), np.exp(rng.uniform(-2, 1, 12))
+    c = certified_log_likelihoods([(mdp, [trajs])], theta, beta)
+    exact = log_likelihood(np.asarray(solve(mdp, theta, beta, tol=1e-12, newton=False).log_policy),
+                           trajs.state, trajs.action)
+    finite = np.isfinite(exact)
+    assert np.all(np.abs(c.log_likelihood[finite] - exact[finite]) <= c.error[finite])
+    assert c.newton_steps[~c.eliminated].min() >= 1 and c.record()["newton_steps"] >= 1

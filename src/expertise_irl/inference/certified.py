@@ -99,6 +99,8 @@ class Certified:
         screen_tols: every screening stage's tolerance, loosest first.
         error_weight: Σ|w| of the demonstrations: each log-likelihood is within ``error_weight·tol_h``
             of the exact one (module docstring).
+        newton_steps: ``[H]`` chord and Newton steps each hypothesis took in the solver's finish
+            (:mod:`expertise_irl.planning.newton`; 0 where none).
     """
 
     log_policy: tuple[np.ndarray, ...]
@@ -112,6 +114,7 @@ class Certified:
     sweeps: np.ndarray
     screen_tols: tuple[float, ...] = ()
     error_weight: float = math.nan
+    newton_steps: np.ndarray | None = None
 
     def record(self) -> dict:
         """What a result document states about it."""
@@ -119,7 +122,8 @@ class Certified:
                 "screen_tol": self.screen_tol, "screen_tols": list(self.screen_tols), "tol": self.tol,
                 "probability_error": self.probability_error, "error_weight": self.error_weight,
                 "max_log_likelihood_error": float(self.error[~self.eliminated].max(initial=0.0)),
-                "sweeps": int(self.sweeps.sum())}
+                "sweeps": int(self.sweeps.sum()),
+                "newton_steps": 0 if self.newton_steps is None else int(self.newton_steps.sum())}
 
 
 def bucket_size(n: int) -> int:
@@ -245,7 +249,7 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     eps = float(st.err[keep].max(initial=0.0)) if np.isfinite(st.err[keep]).all() else math.inf
     bound = math.expm1(2 * eps) + (elimination if gone.any() else 0.0)
     return Certified(tuple(st.policies), tuple(st.values), st.ll, st.err, gone, screens[0], final, bound,
-                     st.sweeps, tuple(screens), weight)
+                     st.sweeps, tuple(screens), weight, st.newton)
 
 
 class _Stages:
@@ -257,6 +261,7 @@ class _Stages:
         self.model = solve_kwargs.get("model", "maxent")
         self.ll, self.err = np.zeros(H), np.zeros(H)
         self.sweeps = np.zeros(H, np.int64)
+        self.newton = np.zeros(H, np.int64)
         self.tol_of = np.full(H, math.inf)
         self.policies: list[np.ndarray] = []
         self.values: list[np.ndarray] = []
@@ -285,6 +290,8 @@ class _Stages:
                 ll += table
                 err += 2 * reached * sum(len(tr.state) for tr in shown)
             sweeps += np.asarray(sol.iterations)[:m]
+            if sol.newton_steps is not None:
+                self.newton[idx] += np.asarray(sol.newton_steps)[:m]
             if len(self.policies) <= g:
                 self.policies.append(lp.copy())
                 self.values.append(v.copy())

@@ -24,6 +24,12 @@ towards the goal, a lower bound on the solution. Either way the pool's plain swe
 tolerance, so the guarantee on V/β is the same; ``iterations`` counts the jumps' and level
 sweeps' cost in sweeps.
 
+Newton's finish (``newton``; by default on a CPU for the soft models on MDPs of at least
+:data:`NEWTON_MIN_STATES` states): the pool sweeps to :data:`NEWTON_FROM` nats, chord and Newton
+steps (:mod:`.newton`, sparse LU) take each hypothesis from there to within a tenth of the
+tolerance, and the pool's plain sweeps then certify the tolerance from those values, so the
+guarantee on V/β is the same; ``newton_steps`` counts the steps.
+
 Two phases (``float32_start``): a float64 solve of at least :data:`FLOAT32_START_MIN`
 hypotheses without ``v_init`` first sweeps in float32 down to float32 resolution, then finishes
 in float64 from those values. The float64 phase stops on the same contraction bound as a cold
@@ -76,6 +82,13 @@ SOLVER_ENV = "EXPERTISE_IRL_SOLVER"
 #: whole ``infer`` with ``levels`` took 1.22x the time of ``sweeps`` at 4,940 states, 0.92x at
 #: 19,760 and 0.74x at 79,040 (the 30 x 30 full set, 883 states: 1.7x).
 LEVELS_MIN_STATES = 10_000
+#: MDPs of at least this many states finish a soft model's solve by Newton's method on a CPU
+#: (:mod:`.newton`; :func:`solve`'s ``newton``): a sparse factorisation pays there (0.5 s of chord
+#: steps per hypothesis at 79,040 states against 0.9-1.0 s of sweeps from 0.14 nats to 2.4e-8).
+NEWTON_MIN_STATES = 20_000
+#: The tolerance the sweeps reach before Newton's method takes over: near enough for the chord
+#: method to converge on one factorisation in 3-4 steps.
+NEWTON_FROM = 0.1
 
 
 def default_method(mdp: TabularMDP | None = None) -> str:
@@ -110,6 +123,8 @@ class SoftSolution(NamedTuple):
         iterations: ``[H]`` backups each hypothesis needed.
         beta: ``[H]`` the temperatures solved for.
         model: the observation model solved (:mod:`expertise_irl.models`).
+        newton_steps: ``[H]`` chord and Newton steps each hypothesis took (:mod:`.newton`), or
+            None where the solve did not use Newton's method.
     """
 
     value: np.ndarray
@@ -117,6 +132,7 @@ class SoftSolution(NamedTuple):
     iterations: np.ndarray
     beta: np.ndarray
     model: str = DEFAULT_MODEL
+    newton_steps: np.ndarray | None = None
 
     @property
     def q(self) -> np.ndarray:
@@ -208,6 +224,7 @@ def solve(
     float32_start: bool = False,
     lanes: int | None = None,
     method: str | None = None,
+    newton: bool | None = None,
 ) -> SoftSolution:
     """Soft value iteration for every hypothesis ``(theta[h], beta[h])``.
 
@@ -251,6 +268,12 @@ def solve(
         method: how the pool's start values are found: ``"sweeps"``, ``"jumps"`` or ``"levels"``
             (the module's "Start values"; default :func:`default_method`). The guarantee on V/β
             is the same whichever.
+        newton: finish by Newton's method (:mod:`.newton`): the sweeps go to
+            :data:`NEWTON_FROM`, chord and Newton steps take each hypothesis from there, and the
+            pool's plain sweeps then certify ``tol`` from those values (the guarantee on V/β is
+            the same). Default (None): on a CPU, for ``maxent`` and ``maxent-relative`` in float64,
+            on MDPs of at least :data:`NEWTON_MIN_STATES` states, when ``tol`` is below
+            :data:`NEWTON_FROM`. ``False`` never; ``True`` wherever the model and dtype allow.
 
     Returns:
         The values, log-policies and iteration counts of every hypothesis, in the order given.
@@ -269,9 +292,33 @@ def solve(
                            dtype=dtype, progress=progress, lanes=lanes, method=method)
     opts = {"tol": tol, "max_iter": max_iter, "chunk_size": chunk_size, "model": model,
             "over_relax": over_relax, "lanes": lanes, "method": method}
+    if _uses_newton(mdp, model, dtype, tol, newton):
+        return _solve_newton(mdp, theta, beta, v_init, progress, opts)
     if not (float32_start and dtype == "float64" and v_init is None and len(theta) >= FLOAT32_START_MIN):
         return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, **opts)
     return _solve_two_phase(mdp, theta, beta, progress, opts)
+
+
+def _uses_newton(mdp: TabularMDP, model: str, dtype: str, tol: float, newton: bool | None) -> bool:
+    """Whether a solve finishes by Newton's method (:func:`solve`'s ``newton``)."""
+    from .newton import SOFT_MODELS
+
+    if newton is False or model not in SOFT_MODELS or dtype != "float64" or not tol < NEWTON_FROM:
+        return False
+    return bool(newton) or (mdp.n_states >= NEWTON_MIN_STATES and _backend() == "cpu")
+
+
+def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:
+    """Sweeps to :data:`NEWTON_FROM`, Newton's method from there, then the pool's plain sweeps to
+    ``tol`` (which certify it); ``iterations`` counts both sweeps, ``newton_steps`` the steps."""
+    from .newton import newton_values
+
+    rough = _solve(mdp, theta, beta, dtype="float64", v_init=v_init, progress=progress,
+                   **{**opts, "tol": NEWTON_FROM, "max_iter": None})
+    values, steps = newton_values(mdp, theta, beta, rough.value, opts["tol"], model=opts["model"])
+    sol = _solve(mdp, theta, beta, dtype="float64", v_init=values, progress=None,
+                 **{**opts, "method": "sweeps"})
+    return sol._replace(iterations=sol.iterations + rough.iterations, newton_steps=steps)
 
 
 def _check_method(mdp: TabularMDP, method: str | None) -> str:
