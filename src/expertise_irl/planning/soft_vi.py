@@ -25,10 +25,11 @@ tolerance, so the guarantee on V/β is the same; ``iterations`` counts the jumps
 sweeps' cost in sweeps.
 
 Newton's finish (``newton``; by default on a CPU for the soft models on MDPs of at least
-:data:`NEWTON_MIN_STATES` states): the pool sweeps to :data:`NEWTON_FROM` nats, chord and Newton
-steps (:mod:`.newton`, sparse LU) take each hypothesis from there to within a tenth of the
-tolerance, and the pool's plain sweeps then certify the tolerance from those values, so the
-guarantee on V/β is the same; ``newton_steps`` counts the steps.
+:data:`NEWTON_MIN_STATES` states and γ >= :data:`NEWTON_MIN_GAMMA`): the pool sweeps to
+:data:`NEWTON_FROM` nats, chord and Newton steps (:mod:`.newton`, sparse LU) take each
+hypothesis from there to within a tenth of the tolerance, and the pool's plain sweeps then
+certify the tolerance from those values, so the guarantee on V/β is the same; ``newton_steps``
+counts the steps.
 
 Two phases (``float32_start``): a float64 solve of at least :data:`FLOAT32_START_MIN`
 hypotheses without ``v_init`` first sweeps in float32 down to float32 resolution, then finishes
@@ -82,10 +83,14 @@ SOLVER_ENV = "EXPERTISE_IRL_SOLVER"
 #: whole ``infer`` with ``levels`` took 1.22x the time of ``sweeps`` at 4,940 states, 0.92x at
 #: 19,760 and 0.74x at 79,040 (the 30 x 30 full set, 883 states: 1.7x).
 LEVELS_MIN_STATES = 10_000
-#: MDPs of at least this many states finish a soft model's solve by Newton's method on a CPU
-#: (:mod:`.newton`; :func:`solve`'s ``newton``): a sparse factorisation pays there (0.5 s of chord
-#: steps per hypothesis at 79,040 states against 0.9-1.0 s of sweeps from 0.14 nats to 2.4e-8).
-NEWTON_MIN_STATES = 20_000
+#: MDPs of at least this many states and a discount of at least :data:`NEWTON_MIN_GAMMA` finish a
+#: soft model's solve by Newton's method on a CPU (:mod:`.newton`; :func:`solve`'s ``newton``).
+#: Measured on the floor plans (γ = 0.99, 95 paper-real hypotheses to 1e-8, warm): 1.15 -> 0.75 s
+#: at 1,138 states, 2.05 -> 1.51 s at 3,162, 4.5 -> 2.5 s at 4,940, 13.2 -> 10.0 s at 19,760; on
+#: ``zones30`` (883 states, γ = 0.95: ~5x fewer sweeps per nat) 0.30 -> 0.58 s for 200 hypotheses.
+NEWTON_MIN_STATES = 1_000
+#: ... and the discount below which sweeps converge fast enough to keep (γ² per sweep).
+NEWTON_MIN_GAMMA = 0.98
 #: The tolerance the sweeps reach before Newton's method takes over: near enough for the chord
 #: method to converge on one factorisation in 3-4 steps.
 NEWTON_FROM = 0.1
@@ -251,29 +256,20 @@ def solve(
             ``"maxent-relative"`` or ``"boltzmann"``. For ``boltzmann`` the hard values are
             solved once per distinct θ (at its smallest β, so every β meets ``tol``) and
             rescaled for the others; ``v_init`` is then ignored.
-        over_relax: let a hypothesis whose Gauss–Seidel sweeps contract at about γ² per sweep
-            (a wandering person, large β) switch to successive over-relaxation, and go back to
-            plain sweeps if that does not beat them (:func:`.kernels.solve_pool`). A plain sweep
-            certifies convergence either way, so the guarantee on V/β is the same; on the paper's
-            sets it halves the sweeps. Not used for ``boltzmann``, whose hard values it slows
-            (105.8 against 97.9 mean sweeps on 360 paper-sim hypotheses on ``zones30``).
-        float32_start: sweep in float32 first, then finish in float64 from there (the module's
-            "Two phases"; off by default, the guarantee on V/β unchanged).
-        lanes: hypotheses along the vector axis of one lane group; default: the width chosen
-            for this machine (:func:`expertise_irl.planning.tuning.lane_width`; a set of fewer than
-            :data:`TUNE_MIN` hypotheses does not measure one), narrowed to the largest power of
-            two <= H when fewer hypotheses than that are solved on a map of at least
-            :data:`.kernels.SHRINK_MIN_ROWS` states. Results agree within the tolerance whatever
-            the width; only the speed depends on it.
+        over_relax: let a hypothesis whose sweeps contract at about γ² per sweep (a wanderer)
+            switch to over-relaxed sweeps while they beat plain ones (:func:`.kernels.solve_pool`);
+            the guarantee on V/β is the same. Not used for ``boltzmann`` (it slows hard values).
+        float32_start: sweep in float32 first, then finish in float64 (the module's "Two phases").
+        lanes: hypotheses along the vector axis of one lane group; default: the width chosen for
+            this machine (:func:`expertise_irl.planning.tuning.lane_width`), narrowed to the largest
+            power of two <= H for fewer hypotheses on a map of at least
+            :data:`.kernels.SHRINK_MIN_ROWS` states. Only the speed depends on it.
         method: how the pool's start values are found: ``"sweeps"``, ``"jumps"`` or ``"levels"``
-            (the module's "Start values"; default :func:`default_method`). The guarantee on V/β
-            is the same whichever.
-        newton: finish by Newton's method (:mod:`.newton`): the sweeps go to
-            :data:`NEWTON_FROM`, chord and Newton steps take each hypothesis from there, and the
-            pool's plain sweeps then certify ``tol`` from those values (the guarantee on V/β is
-            the same). Default (None): on a CPU, for ``maxent`` and ``maxent-relative`` in float64,
-            on MDPs of at least :data:`NEWTON_MIN_STATES` states, when ``tol`` is below
-            :data:`NEWTON_FROM`. ``False`` never; ``True`` wherever the model and dtype allow.
+            (the module's "Start values"; default :func:`default_method`); the guarantee is the same.
+        newton: finish by Newton's method (the module's "Newton's finish"). Default (None): on a
+            CPU, for ``maxent`` and ``maxent-relative`` in float64, on MDPs of at least
+            :data:`NEWTON_MIN_STATES` states with γ >= :data:`NEWTON_MIN_GAMMA`, when ``tol`` is
+            below :data:`NEWTON_FROM`; ``False`` never; ``True`` wherever the model and dtype allow.
 
     Returns:
         The values, log-policies and iteration counts of every hypothesis, in the order given.
@@ -305,7 +301,8 @@ def _uses_newton(mdp: TabularMDP, model: str, dtype: str, tol: float, newton: bo
 
     if newton is False or model not in SOFT_MODELS or dtype != "float64" or not tol < NEWTON_FROM:
         return False
-    return bool(newton) or (mdp.n_states >= NEWTON_MIN_STATES and _backend() == "cpu")
+    large = mdp.n_states >= NEWTON_MIN_STATES and mdp.gamma >= NEWTON_MIN_GAMMA
+    return bool(newton) or (large and _backend() == "cpu")
 
 
 def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:

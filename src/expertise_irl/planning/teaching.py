@@ -23,10 +23,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import logsumexp
 
 from ..errors import InputError
 from ..hypotheses import HypothesisSet
+from ..numerics import log_sum_exp
 
 __all__ = ["MAX_LAMBDA", "Observer", "observer", "solved_observer", "teacher_log_policy",
            "teaching_log_policy", "theta_predictive"]
@@ -35,12 +35,6 @@ __all__ = ["MAX_LAMBDA", "Observer", "observer", "solved_observer", "teacher_log
 #: The largest teaching weight taken: λ = 1 already pays a step's reward per nat of the observer's
 #: belief; far larger values mean nothing a person does and only overflow λ/β.
 MAX_LAMBDA = 1000.0
-
-
-def _lse(x, axis=None):
-    """log Σ exp over ``axis``, −inf (no warning) where every term is −inf."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return logsumexp(x, axis=axis)
 
 
 @dataclass(frozen=True)
@@ -89,15 +83,15 @@ def observer(hypotheses: HypothesisSet, log_policy: np.ndarray,
     H = len(hypotheses)
     if log_prior is None:
         log_prior = np.full(H, -math.log(H))
-    log_prior = np.asarray(log_prior, dtype=np.float64) - _lse(log_prior)
+    log_prior = np.asarray(log_prior, dtype=np.float64) - log_sum_exp(log_prior)
     nt, nb = hypotheses.n_theta, hypotheses.n_beta
     lp = np.asarray(log_policy, dtype=np.float64).reshape(nt, nb, *log_policy.shape[1:])
     prior = log_prior.reshape(nt, nb)
-    log_p_theta = _lse(prior, axis=1)  # [n_theta]
+    log_p_theta = log_sum_exp(prior, axis=1)  # [n_theta]
     with np.errstate(invalid="ignore"):
         cond = np.where(np.isfinite(log_p_theta)[:, None], prior - log_p_theta[:, None], -np.inf)
-    theta_pred = _lse(lp + cond[:, :, None, None], axis=1)  # [n_theta, S', A]
-    pred = _lse(theta_pred + log_p_theta[:, None, None], axis=0)
+    theta_pred = log_sum_exp(lp + cond[:, :, None, None], axis=1)  # [n_theta, S', A]
+    pred = log_sum_exp(theta_pred + log_p_theta[:, None, None], axis=0)
     return Observer(hypotheses, log_prior, pred, theta_pred)
 
 
@@ -113,8 +107,8 @@ def theta_predictive(log_policy_by_beta: np.ndarray, observer_: Observer) -> np.
         ``[S', A]``.
     """
     hyp = observer_.hypotheses
-    log_pb = _lse(observer_.log_prior.reshape(hyp.n_theta, hyp.n_beta), axis=0)
-    return _lse(np.asarray(log_policy_by_beta) + log_pb[:, None, None], axis=0)
+    log_pb = log_sum_exp(observer_.log_prior.reshape(hyp.n_theta, hyp.n_beta), axis=0)
+    return log_sum_exp(np.asarray(log_policy_by_beta) + log_pb[:, None, None], axis=0)
 
 
 def teaching_log_policy(log_policy: np.ndarray, informativeness: np.ndarray, scale) -> np.ndarray:
