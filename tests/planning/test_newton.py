@@ -53,7 +53,7 @@ def test_a_solve_that_finishes_by_newton_keeps_the_guarantee(plan, model):
 
 
 def test_newton_is_used_by_default_only_where_it_applies(plan, monkeypatch):
-    """Large maps on a CPU, soft models in float64, tolerances below NEWTON_FROM; never for
+    """Large maps on a CPU, soft models in float64, tolerances below NEWTON_BELOW; never for
     ``boltzmann`` (a hard max has no smooth Jacobian), on a GPU, or with ``newton=False``."""
     mdp, _ = plan
     uses = soft_vi._uses_newton
@@ -68,7 +68,7 @@ def test_newton_is_used_by_default_only_where_it_applies(plan, monkeypatch):
     assert not uses(mdp, "boltzmann", "float64", 1e-8, None)
     assert not uses(mdp, "boltzmann", "float64", 1e-8, True)
     assert not uses(mdp, "maxent", "float32", 1e-8, None)
-    assert not uses(mdp, "maxent", "float64", soft_vi.NEWTON_FROM, None)
+    assert not uses(mdp, "maxent", "float64", soft_vi.NEWTON_BELOW, None)
     assert not uses(mdp, "maxent", "float64", 1e-8, False)
     monkeypatch.setattr(soft_vi, "_backend", lambda: "gpu")
     assert not uses(mdp, "maxent", "float64", 1e-8, None) and uses(mdp, "maxent", "float64", 1e-8, True)

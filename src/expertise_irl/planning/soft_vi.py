@@ -92,8 +92,12 @@ NEWTON_MIN_STATES = 1_000
 #: ... and the discount below which sweeps converge fast enough to keep (γ² per sweep).
 NEWTON_MIN_GAMMA = 0.98
 #: The tolerance the sweeps reach before Newton's method takes over: near enough for the chord
-#: method to converge on one factorisation in 3-4 steps.
-NEWTON_FROM = 0.1
+#: method to converge in a few steps on one or two factorisations. Five people at 200 x 200 to
+#: 1e-8 took 7.4 s from 1 nat, 8.5 s from 3, 9.1-9.4 s from 0.3 and 0.1.
+NEWTON_FROM = 1.0
+#: Newton's finish is used for tolerances below this (a screen to 0.14 nats is left to the sweeps:
+#: with Newton from 1 nat, the certified screen at 200 x 200 took 48-50 s against 31-37 s).
+NEWTON_BELOW = 0.01
 
 
 def default_method(mdp: TabularMDP | None = None) -> str:
@@ -268,8 +272,8 @@ def solve(
             (the module's "Start values"; default :func:`default_method`); the guarantee is the same.
         newton: finish by Newton's method (the module's "Newton's finish"). Default (None): on a
             CPU, for ``maxent`` and ``maxent-relative`` in float64, on MDPs of at least
-            :data:`NEWTON_MIN_STATES` states with γ >= :data:`NEWTON_MIN_GAMMA`, when ``tol`` is
-            below :data:`NEWTON_FROM`; ``False`` never; ``True`` wherever the model and dtype allow.
+            :data:`NEWTON_MIN_STATES` states with γ >= :data:`NEWTON_MIN_GAMMA`, for ``tol`` below
+            :data:`NEWTON_BELOW`; ``False`` never; ``True`` where model, dtype and ``tol`` allow.
 
     Returns:
         The values, log-policies and iteration counts of every hypothesis, in the order given.
@@ -299,7 +303,7 @@ def _uses_newton(mdp: TabularMDP, model: str, dtype: str, tol: float, newton: bo
     """Whether a solve finishes by Newton's method (:func:`solve`'s ``newton``)."""
     from .newton import SOFT_MODELS
 
-    if newton is False or model not in SOFT_MODELS or dtype != "float64" or not tol < NEWTON_FROM:
+    if newton is False or model not in SOFT_MODELS or dtype != "float64" or not tol < NEWTON_BELOW:
         return False
     large = mdp.n_states >= NEWTON_MIN_STATES and mdp.gamma >= NEWTON_MIN_GAMMA
     return bool(newton) or (large and _backend() == "cpu")
