@@ -85,9 +85,9 @@ SOLVER_ENV = "EXPERTISE_IRL_SOLVER"
 LEVELS_MIN_STATES = 10_000
 #: MDPs of at least this many states and a discount of at least :data:`NEWTON_MIN_GAMMA` finish a
 #: soft model's solve by Newton's method on a CPU (:mod:`.newton`; :func:`solve`'s ``newton``).
-#: Measured on the floor plans (γ = 0.99, 95 paper-real hypotheses to 1e-8, warm): 1.15 -> 0.75 s
-#: at 1,138 states, 2.05 -> 1.51 s at 3,162, 4.5 -> 2.5 s at 4,940, 13.2 -> 10.0 s at 19,760; on
-#: ``zones30`` (883 states, γ = 0.95: ~5x fewer sweeps per nat) 0.30 -> 0.58 s for 200 hypotheses.
+#: Measured on the floor plans (γ = 0.99, paper-real hypotheses to 1e-8, warm): 1.16 -> 0.70 s at
+#: 1,138 states, 4.3 -> 2.2 s at 4,940, 13.0 -> 8.5 s at 19,760; on ``zones30`` (883 states,
+#: γ = 0.95: ~5x fewer sweeps per nat) 0.30 -> 0.58 s for 200 hypotheses.
 NEWTON_MIN_STATES = 1_000
 #: ... and the discount below which sweeps converge fast enough to keep (γ² per sweep).
 NEWTON_MIN_GAMMA = 0.98
