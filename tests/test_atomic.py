@@ -110,7 +110,11 @@ def test_many_episodes_get_a_size_estimate_and_are_written_in_batches(tmp_path, 
 def test_a_stopped_simulate_leaves_nothing_at_its_output(tmp_path, sig, code, word):
     # A run far too long to finish, stopped once its temporary file exists: exit 128 + signal, one
     # line on stderr, no traceback, no file at --out and no temporary file left beside it.
-    cmd = [sys.executable, "-c", "from expertise_irl.cli import app; app()", "simulate", "crossroads",
+    # Python's own SIGINT handler, as at the start of a foreground command: a suite started in the
+    # background of a non-interactive shell runs with SIGINT ignored, which a child inherits
+    start = ("import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+             "from expertise_irl.cli import app; app()")
+    cmd = [sys.executable, "-c", start, "simulate", "crossroads",
            "--theta", "0.5,0.5,0,0,0", "--beta", "1", "--episodes", "100000000", "--max-steps", "1",
            "--out", str(tmp_path / "big.csv")]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
