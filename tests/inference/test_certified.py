@@ -167,3 +167,17 @@ def test_the_survivors_finish_by_newton_on_a_large_map_with_the_same_bound(small
     finite = np.isfinite(exact)
     assert np.all(np.abs(c.log_likelihood[finite] - exact[finite]) <= c.error[finite])
     assert c.newton_steps[~c.eliminated].min() >= 1 and c.record()["newton_steps"] >= 1
+
+
+def test_demonstrations_without_moves_still_get_a_useful_tolerance(small):
+    """No observed action: every log-likelihood is 0 with no error, and the values are solved to the
+    tolerance of one action's bound, not to an unbounded one."""
+    from expertise_irl.demos.trajectories import Trajectories
+
+    mdp, _ = small
+    none = np.zeros(0, np.int64)
+    empty = Trajectories(none, none, none, none)
+    theta = np.full((1, mdp.n_features), 1.0 / mdp.n_features)
+    c = certified_log_likelihoods([(mdp, [empty])], theta, np.array([1.0]))
+    assert c.error_weight == 0 and np.all(c.log_likelihood == 0) and np.all(c.error <= 1e-12)
+    assert c.tol == pytest.approx(data_tolerance(0, error_weight=2.0)) and c.tol < 1e-6

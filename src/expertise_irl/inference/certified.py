@@ -71,6 +71,9 @@ PROBABILITY_ERROR = 1e-6
 #: Batches are padded to 64 × (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, …) hypotheses: a few shapes for JAX to
 #: compile, at most a third of padding.
 BUCKET = 64
+#: The smallest Σ|w| a tolerance is set from (one action's table bound): without demonstrations,
+#: or with moves only into terminal states, the values are still solved to a useful tolerance.
+MIN_WEIGHT = 2.0
 #: The share of the data's log-likelihood error ε that the solve may use; the rest is left for the
 #: rounding of the sums.
 ROUNDING_SHARE = 0.99
@@ -155,7 +158,7 @@ def data_tolerance(n_actions: int, probability_error: float = PROBABILITY_ERROR,
         raise InputError(f"need 0 < elimination < probability_error < 1, got {elimination:g} and "
                          f"{probability_error:g}")
     eps = ROUNDING_SHARE * math.log1p(probability_error - elimination) / 2
-    weight = 2 * max(n_actions, 1) if error_weight is None else max(float(error_weight), 1e-300)
+    weight = 2 * max(n_actions, 1) if error_weight is None else max(float(error_weight), MIN_WEIGHT)
     return max(eps / weight, MIN_TOL)
 
 
@@ -233,7 +236,7 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     final = float(tol) if tol is not None else data_tolerance(n, probability_error, elimination,
                                                               error_weight=weight)
     if screen_tol is None:
-        screens = sorted({max(w / max(weight, 1e-300), final) for w in SCREEN_WIDTHS}, reverse=True)
+        screens = sorted({max(w / max(weight, MIN_WEIGHT), final) for w in SCREEN_WIDTHS}, reverse=True)
     else:
         screens = [max(screen_tol, final)]
     prior = np.zeros(H) if log_prior is None else np.asarray(log_prior, float)
