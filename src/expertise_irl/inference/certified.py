@@ -188,15 +188,16 @@ def error_weight(mdp: TabularMDP, shown, model: str = "maxent") -> float:
     return 2.0 * sum(len(t.state) for t in shown)
 
 
-def telescoped_log_likelihood(mdp: TabularMDP, shown, theta, beta, value, model: str = "maxent"
-                              ) -> tuple[np.ndarray, np.ndarray]:
+def telescoped_log_likelihood(mdp: TabularMDP, shown, theta, beta, value, model: str = "maxent",
+                              weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``([H] LL, [H] rounding bound)``: the telescoped log-likelihood of the moves of ``shown``
     (Trajectories) from values ``value [H, S]`` (reward units) of ``(theta [H, K], beta [H])``;
-    finite even where a move is impossible (the caller takes −inf from the table)."""
+    finite even where a move is impossible (the caller takes −inf from the table). ``weights``:
+    :func:`state_weights` of ``shown``, when the caller has them."""
     states, actions = _moves(mdp, shown)
     basis = mdp.reward_basis()[states, actions].sum(axis=0)  # [K'] the observed moves' features
     rew = mdp.reward_weights(theta) @ basis  # [H] Σ_t R(s_t, a_t)
-    w = state_weights(mdp, shown)
+    w = state_weights(mdp, shown) if weights is None else weights
     support = np.flatnonzero(w)
     vw = value[:, support] * w[support]
     const = 0.0
@@ -230,8 +231,8 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     :func:`~expertise_irl.planning.soft_vi.solve`."""
     theta, beta = np.atleast_2d(np.asarray(theta, float)), np.atleast_1d(np.asarray(beta, float))
     H = len(beta)
-    model = solve_kwargs.get("model", "maxent")
-    weight = sum(error_weight(mdp, shown, model) for mdp, shown in tasks)
+    st = _Stages(tasks, theta, beta, solve_kwargs, H)
+    weight = sum(st.factor)
     n = sum(len(t.state) for _, shown in tasks for t in shown)
     final = float(tol) if tol is not None else data_tolerance(n, probability_error, elimination,
                                                               error_weight=weight)
@@ -240,7 +241,6 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     else:
         screens = [max(screen_tol, final)]
     prior = np.zeros(H) if log_prior is None else np.asarray(log_prior, float)
-    st = _Stages(tasks, theta, beta, solve_kwargs, H)
     st.run(np.arange(H), screens[0], v_init, progress)
     gone = np.zeros(H, bool)
     for t in [*screens[1:], final]:
@@ -262,6 +262,11 @@ class _Stages:
     def __init__(self, tasks, theta, beta, solve_kwargs, H):
         self.tasks, self.theta, self.beta, self.kw = tasks, theta, beta, solve_kwargs
         self.model = solve_kwargs.get("model", "maxent")
+        # per map: the telescoped sum's state weights and the log-likelihood's error per unit tol_h
+        self.weights = [state_weights(mdp, shown) for mdp, shown in tasks]
+        self.factor = [float(np.abs(w).sum()) if self.model in TELESCOPING_MODELS
+                       else 2.0 * sum(len(t.state) for t in shown)
+                       for w, (_, shown) in zip(self.weights, tasks, strict=True)]
         self.ll, self.err = np.zeros(H), np.zeros(H)
         self.sweeps = np.zeros(H, np.int64)
         self.newton = np.zeros(H, np.int64)
@@ -286,18 +291,19 @@ class _Stages:
             table = sum(log_likelihood(lp, tr.state, tr.action) for tr in shown)
             reached = _reached(mdp, v, be[:m], tol)
             if self.model in TELESCOPING_MODELS:
-                tele, rounding = telescoped_log_likelihood(mdp, shown, th[:m], be[:m], v, self.model)
+                tele, rounding = telescoped_log_likelihood(mdp, shown, th[:m], be[:m], v, self.model,
+                                                           self.weights[g])
                 ll += np.where(np.isfinite(table), tele, -np.inf)
-                err += reached * error_weight(mdp, shown, self.model) + rounding
+                err += reached * self.factor[g] + rounding
             else:
                 ll += table
-                err += 2 * reached * sum(len(tr.state) for tr in shown)
+                err += reached * self.factor[g]
             sweeps += np.asarray(sol.iterations)[:m]
             if sol.newton_steps is not None:
                 self.newton[idx] += np.asarray(sol.newton_steps)[:m]
             if len(self.policies) <= g:
-                self.policies.append(lp.copy())
-                self.values.append(v.copy())
+                self.policies.append(lp)  # the solve's own arrays: no other reference to them
+                self.values.append(v)
             else:
                 self.policies[g][idx], self.values[g][idx] = lp, v
         self.ll[idx], self.err[idx], self.tol_of[idx] = ll, err, tol
