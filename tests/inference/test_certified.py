@@ -181,3 +181,46 @@ def test_demonstrations_without_moves_still_get_a_useful_tolerance(small):
     c = certified_log_likelihoods([(mdp, [empty])], theta, np.array([1.0]))
     assert c.error_weight == 0 and np.all(c.log_likelihood == 0) and np.all(c.error <= 1e-12)
     assert c.tol == pytest.approx(data_tolerance(0, error_weight=2.0)) and c.tol < 1e-6
+
+
+@pytest.mark.parametrize("method", ["sweeps", "levels"])
+def test_eliminating_in_the_sweeps_keeps_the_bound_and_saves_sweeps(readme_person, method, monkeypatch):
+    """The first stage's sweeps stop most hypotheses as soon as their elimination is certain
+    (planning.screening): every probability stays within the bound of a full-precision solve,
+    every hypothesis stopped there is negligible, and fewer sweeps are spent than without."""
+    from expertise_irl.inference import certified
+
+    mdp, trajs, hyp = readme_person
+    c = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta, method=method)
+    full = solve(mdp, hyp.theta, hyp.beta, tol=1e-10)
+    exact_ll = log_likelihood(np.asarray(full.log_policy), trajs.state, trajs.action)
+    exact = _posterior(exact_ll)
+    assert np.max(np.abs(_posterior(c.log_likelihood) - exact)) <= c.probability_error <= 1e-6
+    stopped = c.stopped_tol > 0
+    assert c.record()["eliminated_in_sweeps"] == stopped.sum() >= c.eliminated.sum() // 2
+    assert np.all(c.eliminated[stopped])
+    assert np.all(exact_ll[stopped] < exact_ll.max() + np.log(1e-12 / len(hyp.beta)))
+    monkeypatch.setattr(certified._Stages, "gate", lambda self, *args: None)
+    off = certified_log_likelihoods([(mdp, [trajs])], hyp.theta, hyp.beta, method=method)
+    assert off.record()["eliminated_in_sweeps"] == 0
+    assert c.sweeps.sum() < off.sweeps.sum()
+
+
+def test_a_prior_that_favours_a_poor_hypothesis_keeps_it(small):
+    """The gate counts the log prior weights: a hypothesis hundreds of nats below the best one in
+    likelihood but given e^400 times the prior weight is not eliminated, and the posterior with that
+    prior matches a full-precision one."""
+    mdp, trajs = small
+    rng = np.random.default_rng(21)
+    H = 32
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-3, 2, H))
+    exact_ll = log_likelihood(np.asarray(solve(mdp, theta, beta, tol=1e-12).log_policy), trajs.state,
+                              trajs.action)
+    poor = int(np.argsort(exact_ll)[H // 4])
+    assert exact_ll.max() - exact_ll[poor] > 100
+    prior = np.zeros(H)
+    prior[poor] = exact_ll.max() - exact_ll[poor] + 1.0
+    c = certified_log_likelihoods([(mdp, [trajs])], theta, beta, log_prior=prior)
+    assert not c.eliminated[poor] and c.eliminated.any()
+    exact = _posterior(exact_ll + prior)
+    assert np.max(np.abs(_posterior(c.log_likelihood + prior) - exact)) <= c.probability_error

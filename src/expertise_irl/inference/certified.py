@@ -35,6 +35,9 @@ whose upper bound ``LL_h + err_h + l_h`` lies below ``M + ln(elimination / H)`` 
 probability below ``elimination / H`` whatever its exact values, and is **eliminated**: it keeps
 its values and stops. The others continue from their values to the next, narrower width, and the
 test is made again (no stage is tighter than the final tolerance; ``screen_tol`` gives one stage).
+On one map under a telescoping model the first stage's sweeps make the same test at every check
+(:mod:`expertise_irl.planning.screening`): a hypothesis stops there as soon as its elimination is
+certain, with values whose own ``tol_h`` its bound uses (``stopped_tol``).
 
 **Finish.** The survivors continue to the final tolerance: ``tol`` when given, else the one the
 demonstrations need for every posterior probability to be within ``probability_error`` of the
@@ -104,6 +107,8 @@ class Certified:
             of the exact one (module docstring).
         newton_steps: ``[H]`` chord and Newton steps each hypothesis took in the solver's finish
             (:mod:`expertise_irl.planning.newton`; 0 where none).
+        stopped_tol: ``[H]`` for each hypothesis eliminated in the first stage's sweeps
+            (:mod:`expertise_irl.planning.screening`) the tolerance its values certify; 0 for the others.
     """
 
     log_policy: tuple[np.ndarray, ...]
@@ -118,10 +123,13 @@ class Certified:
     screen_tols: tuple[float, ...] = ()
     error_weight: float = math.nan
     newton_steps: np.ndarray | None = None
+    stopped_tol: np.ndarray | None = None
 
     def record(self) -> dict:
         """What a result document states about it."""
+        stopped = 0 if self.stopped_tol is None else int(np.sum(self.stopped_tol > 0))
         return {"eliminated": int(self.eliminated.sum()), "hypotheses": int(self.eliminated.size),
+                "eliminated_in_sweeps": stopped,
                 "screen_tol": self.screen_tol, "screen_tols": list(self.screen_tols), "tol": self.tol,
                 "probability_error": self.probability_error, "error_weight": self.error_weight,
                 "max_log_likelihood_error": float(self.error[~self.eliminated].max(initial=0.0)),
@@ -241,8 +249,9 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     else:
         screens = [max(screen_tol, final)]
     prior = np.zeros(H) if log_prior is None else np.asarray(log_prior, float)
-    st.run(np.arange(H), screens[0], v_init, progress)
-    gone = np.zeros(H, bool)
+    st.run(np.arange(H), screens[0], v_init, progress, gate=st.gate(prior, elimination, best_known))
+    gone = st.stopped > 0  # eliminated in the sweeps, certified there (planning/screening.py)
+    best_known = max(best_known, st.gate_best)
     for t in [*screens[1:], final]:
         gone |= st.eliminated(prior, best_known, elimination) & ~gone
         keep = np.flatnonzero(~gone)
@@ -252,7 +261,7 @@ def certified_log_likelihoods(tasks: Sequence[tuple[TabularMDP, Sequence]], thet
     eps = float(st.err[keep].max(initial=0.0)) if np.isfinite(st.err[keep]).all() else math.inf
     bound = math.expm1(2 * eps) + (elimination if gone.any() else 0.0)
     return Certified(tuple(st.policies), tuple(st.values), st.ll, st.err, gone, screens[0], final, bound,
-                     st.sweeps, tuple(screens), weight, st.newton)
+                     st.sweeps, tuple(screens), weight, st.newton, st.stopped)
 
 
 class _Stages:
@@ -271,13 +280,38 @@ class _Stages:
         self.sweeps = np.zeros(H, np.int64)
         self.newton = np.zeros(H, np.int64)
         self.tol_of = np.full(H, math.inf)
+        self.stopped = np.zeros(H)  # tol_h of the hypotheses a gate eliminated in the sweeps
+        self.gate_best = -math.inf
         self.policies: list[np.ndarray] = []
         self.values: list[np.ndarray] = []
 
-    def run(self, idx: np.ndarray, tol: float, starts, progress) -> None:
-        """Solve hypotheses ``idx`` to ``tol`` from ``starts`` (per map, ``[H, S]`` or None); a later
-        stage is padded with its last hypothesis to :func:`stage_size` (few shapes to compile)."""
-        from ..planning.soft_vi import solve
+    def gate(self, prior: np.ndarray, elimination: float, best_known: float):
+        """The :class:`~expertise_irl.planning.screening.Gate` of the first stage, or None where the
+        sweeps cannot eliminate: several maps (each solve sees one map's share), a model whose
+        log-likelihood does not telescope, or an observed action unavailable (every hypothesis'
+        log-likelihood is then −inf)."""
+        from ..planning.screening import Gate
+
+        if len(self.tasks) != 1 or self.model not in TELESCOPING_MODELS:
+            return None
+        (mdp, shown), w = self.tasks[0], self.weights[0]
+        states, actions = _moves(mdp, shown)
+        if len(states) and not (mdp.available[states, actions].all() and (~mdp.terminal[states]).all()):
+            return None
+        basis = mdp.reward_basis()[states, actions].sum(axis=0)
+        const = 0.0
+        if self.model == "maxent-relative":
+            const = float(np.log(np.maximum(mdp.available[states].sum(axis=1), 1)).sum())
+        base = mdp.reward_weights(self.theta) @ basis / self.beta - const + prior
+        support = np.flatnonzero(w)
+        return Gate(support, w[support], base, self.factor[0], float(w[w > 0].sum()),
+                    math.log(elimination / len(self.beta)), best_known, len(states))
+
+    def run(self, idx: np.ndarray, tol: float, starts, progress, gate=None) -> None:
+        """Solve hypotheses ``idx`` to ``tol`` from ``starts`` (per map, ``[H, S]`` or None), with
+        ``gate`` (the first stage's, for every hypothesis) eliminating in the sweeps; a later stage
+        is padded with its last hypothesis to :func:`stage_size` (few shapes to compile)."""
+        from ..planning.soft_vi import solve, solve_screened
         from ..planning.table_likelihood import log_likelihood
 
         m = idx.size
@@ -286,10 +320,14 @@ class _Stages:
         ll, err, sweeps = np.zeros(m), np.zeros(m), np.zeros(m, np.int64)
         for g, (mdp, shown) in enumerate(self.tasks):
             v0 = None if starts is None else starts[g][padded]
-            sol = solve(mdp, th, be, tol=tol, v_init=v0, progress=progress, **self.kw)
+            if gate is None:
+                sol = solve(mdp, th, be, tol=tol, v_init=v0, progress=progress, **self.kw)
+            else:
+                sol = solve_screened(mdp, th, be, gate, tol=tol, v_init=v0, progress=progress, **self.kw)
+                self.stopped[idx], self.gate_best = sol.stopped_tol, sol.gate_best
             lp, v = np.asarray(sol.log_policy)[:m], np.asarray(sol.value)[:m]
             table = sum(log_likelihood(lp, tr.state, tr.action) for tr in shown)
-            reached = _reached(mdp, v, be[:m], tol)
+            reached = np.maximum(_reached(mdp, v, be[:m], tol), self.stopped[idx])
             if self.model in TELESCOPING_MODELS:
                 tele, rounding = telescoped_log_likelihood(mdp, shown, th[:m], be[:m], v, self.model,
                                                            self.weights[g])
@@ -306,7 +344,7 @@ class _Stages:
                 self.values.append(v)
             else:
                 self.policies[g][idx], self.values[g][idx] = lp, v
-        self.ll[idx], self.err[idx], self.tol_of[idx] = ll, err, tol
+        self.ll[idx], self.err[idx], self.tol_of[idx] = ll, err, np.maximum(tol, self.stopped[idx])
         self.sweeps[idx] += sweeps
 
     def eliminated(self, prior: np.ndarray, best_known: float, elimination: float) -> np.ndarray:

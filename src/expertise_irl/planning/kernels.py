@@ -41,6 +41,7 @@ import numpy as np
 from ..mdp import TabularMDP
 from ..models import backup
 from ..numerics import enable_float64
+from .screening import gate_check
 
 #: Hypotheses along the minor (vector) axis of one group where none is chosen for the machine
 #: (:mod:`expertise_irl.planning.tuning` picks it at first use). XLA's CPU code ran about twice as fast
@@ -255,7 +256,7 @@ def _from_lanes(x):
 
 
 def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int = LANES,
-               model: str = "maxent", relax: bool = True):
+               model: str = "maxent", relax: bool = True, gate=None, best=-np.inf, n_live: int | None = None):
     """Solve every hypothesis with a pool of ``groups × lanes`` lanes that refill as they finish.
 
     A lane starts with plain Gauss–Seidel sweeps. With ``relax``, from its second check on, a
@@ -273,11 +274,20 @@ def solve_pool(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
         v0: ``[H, rows]`` initial scaled values in solver rows.
         gamma, tol, max_iter: scalars (see :func:`expertise_irl.planning.soft_vi.solve`).
 
-    Returns ``(v [H, rows], sweeps [H], last change [H])``; the last change is 0 for every
-    hypothesis that met its tolerance, and positive (or NaN) for one that did not.
+    With ``gate`` (:class:`.screening.GateArrays` for these hypotheses), a lane also stops when
+    its hypothesis is certainly eliminated (:mod:`.screening`), starting from the certain log mass
+    ``best``. Only the first ``n_live`` hypotheses (default all) are handed out; the others' rows of
+    the outputs are zeros.
+
+    Returns ``(v [H, rows], sweeps [H], last change [H], best)``; the last change is 0 for every
+    hypothesis that met its tolerance, ``−tol_h`` for one the gate stopped (its values are within
+    ``tol_h`` of the solution), and positive (or NaN) for one that did not converge; ``best`` is
+    the best certain log mass the gate saw (``best`` as given without a gate).
     """
+    H = weights.shape[0]
+    n_live = H if n_live is None else int(n_live)
     return _pool_impl(prep, weights, v0, gamma, tol, max_iter, groups=groups, lanes=lanes, model=model,
-                      relax=relax)
+                      relax=relax, gate=gate, best=best, n_live=n_live)
 
 
 @partial(jax.jit, static_argnames=("model",))
@@ -320,57 +330,59 @@ def _switch_relaxation(sor, v, d, fin, gamma, *, omega_ok: bool, groups: int):
     return v, d, (mode, checks, d, v_save, d_save)
 
 
-def _retire(c, fin, conv, d, weights, v0, groups: int):
-    """Write finished lanes' values, sweeps and last change out, and hand them the next hypotheses."""
+def _retire(c, fin, conv, d, weights, v0, groups: int, n_live):
+    """Write finished lanes' values, sweeps and last change out, and hand them the next of the
+    first ``n_live`` hypotheses."""
     H = weights.shape[0]
-    w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
+    w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor, best = c
     where = jnp.where(fin, lane_h, H)  # index H is out of range: dropped
     out_v = out_v.at[where].set(_from_lanes(v), mode="drop")
     out_it = out_it.at[where].set(it, mode="drop")
     out_d = out_d.at[where].set(jnp.where(conv, 0.0, d), mode="drop")
     new_h = next_h + jnp.cumsum(fin) - 1
-    take = fin & (new_h < H)
+    take = fin & (new_h < n_live)
     src = jnp.clip(new_h, 0, H - 1)
     lane_h = jnp.where(take, new_h, lane_h)
     w = jnp.where(_to_lanes(take, groups)[:, None, :], _to_lanes(weights[src], groups), w)
     v = jnp.where(_to_lanes(take, groups)[:, None, :], _to_lanes(v0[src], groups), v)
     it = jnp.where(take, 0, it)
     active = jnp.where(fin, take, active)
-    next_h = jnp.minimum(next_h + jnp.sum(fin), H)
+    next_h = jnp.minimum(next_h + jnp.sum(fin), n_live)
     mode, checks, d_prev, v_save, d_save = sor
     sor = (jnp.where(take, _MEASURE, mode), jnp.where(take, 0, checks),
            jnp.where(take, jnp.inf, d_prev), v_save, d_save)
-    return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor
+    return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor, best
 
 
-def _pool_init(weights, v0, *, groups: int, lanes: int):
-    """The pool's first state: the first ``groups × lanes`` hypotheses in the lanes."""
+def _pool_init(weights, v0, n_live, best, *, groups: int, lanes: int):
+    """The pool's first state: the first ``groups × lanes`` of the first ``n_live`` hypotheses in
+    the lanes, and the certain log mass ``best``."""
     dtype = v0.dtype
     H = weights.shape[0]
     slots = groups * lanes
     lane_h = jnp.arange(slots)
-    active = lane_h < H
+    active = lane_h < n_live
     lane_h = jnp.where(active, lane_h, 0)
     return (
         _to_lanes(weights[lane_h], groups),  # w [G, K, L]
         _to_lanes(v0[lane_h], groups),  # v [G, rows, L]
         lane_h, active, jnp.zeros(slots, jnp.int64),  # lane -> hypothesis, busy, sweeps
-        jnp.minimum(slots, H),  # next hypothesis to hand out
+        jnp.minimum(slots, n_live),  # next hypothesis to hand out
         jnp.zeros_like(v0), jnp.zeros(H, jnp.int64), jnp.zeros(H, dtype),  # outputs
         # over-relaxation per lane: mode, checks in this mode, last change, values and change
         # where it started
         (jnp.full(slots, _MEASURE, jnp.int32), jnp.zeros(slots, jnp.int32), jnp.full(slots, jnp.inf, dtype),
          jnp.zeros((groups, v0.shape[1], lanes), dtype), jnp.zeros(slots, dtype)),
+        jnp.asarray(best, dtype),  # the best certain log mass (screening.Gate)
     )
 
 
-def _pool_run(prep: Prepared, weights, v0, carry, gamma, tol, max_iter, min_active, *, groups: int,
-              lanes: int, model: str, relax: bool):
+def _pool_run(prep: Prepared, weights, v0, carry, gamma, tol, max_iter, min_active, n_live, gate, *,
+              groups: int, lanes: int, model: str, relax: bool):
     """Run the pool from ``carry`` until every lane is idle, or until no hypothesis is left to hand
     out and at most ``min_active`` lanes are busy (then the caller repacks them into fewer groups)."""
     dtype = prep.features.dtype
     eps = jnp.finfo(dtype).eps
-    H = weights.shape[0]
     gamma = gamma.astype(dtype)
     # Each sweep is a γ-contraction, so ||v_n+1 - v_n|| <= tol (1-γ)/γ bounds ||v_n+1 - v*|| by
     # tol; the threshold is floored at the floating-point resolution of the values themselves.
@@ -379,24 +391,32 @@ def _pool_run(prep: Prepared, weights, v0, carry, gamma, tol, max_iter, min_acti
 
     def cond(c):
         active, next_h = c[3], c[5]
-        return jnp.any(active) & ((next_h < H) | (jnp.sum(active) > min_active))
+        return jnp.any(active) & ((next_h < n_live) | (jnp.sum(active) > min_active))
 
     def body(c):
-        w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = c
+        w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor, best = c
         mode = sor[0]
         # CHECK_EVERY - 1 sweeps (over-relaxed in lanes that chose it), then a plain one.
         omega_l = _to_lanes(jnp.where(mode == _RELAX, omega, 1.0).astype(dtype), groups)
         v = jax.lax.fori_loop(0, CHECK_EVERY - 1,
                               lambda _, v: _relaxed_groups(prep, w, v, gamma, model, omega_l)[0], v)
+        v_before = v
         v, d = _sweep_groups(prep, w, v, gamma, model)
         d = _from_lanes(d)
         it = it + CHECK_EVERY * active.astype(it.dtype)
         vmax = _from_lanes(jnp.max(jnp.abs(v), axis=1))
         conv = active & (d <= jnp.maximum(base_thresh, 8.0 * eps * vmax))
-        fin = conv | (active & (it >= max_iter))
+        stop = jnp.zeros_like(conv)
+        if gate is not None:  # certified elimination (screening.py); converged lanes raise best too
+            below = _from_lanes(jnp.min(v - v_before, axis=1)) >= 0  # screening.py: then v <= T v <= v*
+            stop, best, tol_h = gate_check(gate, _from_lanes(v[:, gate.rows, :]), d, vmax, lane_h, active,
+                                           best, gamma / (1.0 - gamma), below)
+            stop = stop & ~conv
+        fin = conv | stop | (active & (it >= max_iter))
         v, d, sor = _switch_relaxation(sor, v, d, fin, gamma, omega_ok=relax, groups=groups)
-        return _retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor), fin, conv, d,
-                       weights, v0, groups)
+        d = d if gate is None else jnp.where(stop, -tol_h, d)
+        return _retire((w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor, best), fin, conv, d,
+                       weights, v0, groups, n_live)
 
     return jax.lax.while_loop(cond, body, carry)
 
@@ -418,11 +438,12 @@ def repack(active, grouped: tuple, slotted: tuple, groups: int):
 
 @partial(jax.jit, static_argnames=("groups",))
 def _repack_pool(carry, *, groups: int):
-    w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor = carry
+    w, v, lane_h, active, it, next_h, out_v, out_it, out_d, sor, best = carry
     mode, checks, d_prev, v_save, d_save = sor
     (w, v, v_save), (lane_h, active, it, mode, checks, d_prev, d_save) = repack(
         active, (w, v, v_save), (lane_h, active, it, mode, checks, d_prev, d_save), groups)
-    return w, v, lane_h, active, it, next_h, out_v, out_it, out_d, (mode, checks, d_prev, v_save, d_save)
+    return (w, v, lane_h, active, it, next_h, out_v, out_it, out_d, (mode, checks, d_prev, v_save, d_save),
+            best)
 
 
 def shrink_floor(n_rows: int, groups: int, lanes: int) -> int:
@@ -446,17 +467,19 @@ def drain(run, repack_to, carry, n_rows: int, groups: int, lanes: int):
 
 
 def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int, lanes: int, model: str,
-               relax: bool):
+               relax: bool, gate, best, n_live: int):
     dtype = prep.features.dtype
     weights, v0 = jnp.asarray(weights).astype(dtype), jnp.asarray(v0).astype(dtype)
     gamma, tol, max_iter = jnp.asarray(gamma), jnp.asarray(tol), jnp.asarray(max_iter)
+    live = jnp.asarray(n_live)
     def run(c, floor, g):
-        return _jit_pool_run(prep, weights, v0, c, gamma, tol, max_iter, floor, groups=g, lanes=lanes,
-                             model=model, relax=relax)
+        return _jit_pool_run(prep, weights, v0, c, gamma, tol, max_iter, floor, live, gate, groups=g,
+                             lanes=lanes, model=model, relax=relax)
 
     carry = drain(run, lambda c, g: _repack_pool(c, groups=g),
-                  _jit_pool_init(weights, v0, groups=groups, lanes=lanes), prep.n_rows, groups, lanes)
-    return carry[6], carry[7], carry[8]
+                  _jit_pool_init(weights, v0, live, best, groups=groups, lanes=lanes), prep.n_rows, groups,
+                  lanes)
+    return carry[6], carry[7], carry[8], float(carry[10])
 
 
 def final_policies(prep: Prepared, weights, v, gamma, *, groups: int, model: str = "maxent"):

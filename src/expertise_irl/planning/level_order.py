@@ -45,6 +45,7 @@ import numpy as np
 from ..mdp import TabularMDP
 from ..models import backup
 from .kernels import Prepared, _from_lanes, _to_lanes, drain, goal_distance, hand_out, repack
+from .screening import gate_check
 
 #: States per block of a level (padded); 64–128 were fastest at 200 × 200 on 2 cores.
 BLOCK = 64
@@ -168,7 +169,7 @@ def approach_start(lv: Levels, weights, v0, gamma, *, lanes: int, model: str = "
 
 
 @partial(jax.jit, static_argnames=("groups", "lanes"))
-def _level_init(weights, v0, *, groups: int, lanes: int):
+def _level_init(weights, v0, best, *, groups: int, lanes: int):
     H = weights.shape[0]
     slots = groups * lanes
     lane_h = jnp.arange(slots)
@@ -177,11 +178,13 @@ def _level_init(weights, v0, *, groups: int, lanes: int):
     return (_to_lanes(weights[lane_h], groups), _to_lanes(v0[lane_h], groups), lane_h, active,
             jnp.zeros(slots, jnp.int64), jnp.minimum(slots, H),  # sweeps, next hypothesis
             jnp.full((LEVEL_WINDOW, slots), jnp.inf, v0.dtype),  # the last changes, oldest first
-            jnp.zeros_like(v0), jnp.zeros(H, jnp.int64))  # outputs: values, sweeps
+            jnp.zeros_like(v0), jnp.zeros(H, jnp.int64),  # outputs: values, sweeps
+            jnp.zeros(H, v0.dtype), jnp.asarray(best, v0.dtype))  # the gate's: tol_h, best log mass
 
 
 @partial(jax.jit, static_argnames=("groups", "lanes", "model"))
-def _level_run(lv: Levels, weights, v0, carry, gamma, thresh, floor, *, groups: int, lanes: int, model: str):
+def _level_run(lv: Levels, weights, v0, carry, gamma, thresh, floor, gate, rising, *, groups: int,
+               lanes: int, model: str):
     """Run the level pool from ``carry`` until every lane is idle, or until nothing is left to hand
     out and at most ``floor`` lanes are busy."""
     dtype = lv.features.dtype
@@ -192,44 +195,55 @@ def _level_run(lv: Levels, weights, v0, carry, gamma, thresh, floor, *, groups: 
         return jnp.any(c[3]) & ((c[5] < H) | (jnp.sum(c[3]) > floor))
 
     def body(c):
-        w, v, lane_h, active, k, next_h, past, out_v, out_k = c
+        w, v, lane_h, active, k, next_h, past, out_v, out_k, out_t, best = c
+        v_before = v
         v, d = _sym_groups(lv, w, v, gamma, model)
         d = _from_lanes(d)
         k = k + active.astype(k.dtype)
         ok = jnp.isfinite(d)
         fast = d <= gamma ** (LEVEL_RATE_POWER * LEVEL_WINDOW) * past[0]
         go = ok & (d > thresh) & (k < LEVEL_MAX) & ((k < LEVEL_GRACE) | fast)
+        if gate is not None:  # certified elimination (screening.py): a symmetric sweep is a γ²-contraction
+            vmax = _from_lanes(jnp.max(jnp.abs(v), axis=1))
+            # from the approach start the sweeps rise to the solution (screening.py); a fall flags rounding
+            below = rising & (_from_lanes(jnp.min(v - v_before, axis=1)) >= 0)
+            stop, best, tol_h = gate_check(gate, _from_lanes(v[:, gate.rows, :]), d, vmax, lane_h, active,
+                                           best, gamma * gamma / (1.0 - gamma * gamma), below)
+            out_t = out_t.at[jnp.where(stop, lane_h, H)].set(tol_h, mode="drop")
+            go = go & ~stop
         fin = active & ~go
         past = jnp.concatenate([past[1:], d[None]])
         take, (w, v, lane_h, active, k, next_h, out_v, out_k) = hand_out(
             fin, v, (w, v, lane_h, active, k, next_h, out_v, out_k), weights, v0, groups)
         past = jnp.where(take, jnp.inf, past)
-        return w, v, lane_h, active, k, next_h, past, out_v, out_k
+        return w, v, lane_h, active, k, next_h, past, out_v, out_k, out_t, best
 
     return jax.lax.while_loop(cond, body, carry)
 
 
 @partial(jax.jit, static_argnames=("groups",))
 def _level_repack(carry, *, groups: int):
-    w, v, lane_h, active, k, next_h, past, out_v, out_k = carry
+    w, v, lane_h, active, k, next_h, past, *rest = carry
     (w, v), (lane_h, active, k, past) = repack(active, (w, v), (lane_h, active, k, past), groups)
-    return w, v, lane_h, active, k, next_h, past, out_v, out_k
+    return (w, v, lane_h, active, k, next_h, past, *rest)
 
 
 def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int,
-                model: str):
+                model: str, gate, best, rising: bool):
     dtype = lv.features.dtype
     weights, v0 = jnp.asarray(weights).astype(dtype), jnp.asarray(v0).astype(dtype)
     gamma, thresh = jnp.asarray(gamma), jnp.asarray(thresh)
     def run(c, floor, g):
-        return _level_run(lv, weights, v0, c, gamma, thresh, floor, groups=g, lanes=lanes, model=model)
+        return _level_run(lv, weights, v0, c, gamma, thresh, floor, gate, jnp.asarray(rising), groups=g,
+                          lanes=lanes, model=model)
 
     carry = drain(run, lambda c, g: _level_repack(c, groups=g),
-                  _level_init(weights, v0, groups=groups, lanes=lanes), v0.shape[1], groups, lanes)
-    return carry[7], carry[8]
+                  _level_init(weights, v0, best, groups=groups, lanes=lanes), v0.shape[1], groups, lanes)
+    return carry[7], carry[8], carry[9], float(carry[10])
 
 
-def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str = "maxent"):
+def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: int, model: str = "maxent",
+                gate=None, best: float = -np.inf, rising: bool = False):
     """Starting values for :func:`.kernels.solve_pool` from symmetric level-order sweeps, with a
     pool of ``groups × lanes`` lanes that take the next hypothesis as each one stops.
 
@@ -241,8 +255,16 @@ def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
     large MDP the pool moves to half its lane groups whenever its busy lanes fit, once nothing is
     left to hand out (:func:`.kernels.shrink_floor`).
 
-    Returns ``(v [n, rows], symmetric sweeps [n])`` for ``weights [n, K']`` and ``v0 [n, rows]``.
+    With ``gate`` (:class:`.screening.GateArrays` for these hypotheses), a hypothesis also stops
+    when it is certainly eliminated (:mod:`.screening`), starting from the certain log mass
+    ``best``; its values are then final. ``rising``: ``v0`` is below the solution
+    (:func:`approach_start`'s values), so the sweeps' values are too (a tighter bound, :mod:`.screening`).
+
+    Returns ``(v [n, rows], symmetric sweeps [n], tol_h [n], best)``: ``tol_h`` is the tolerance
+    the values of each hypothesis the gate stopped certify (0 for the others, whose values only
+    start the pool), ``best`` the best certain log mass seen (as given without a gate).
     """
-    v, k = _level_impl(lv, weights, v0, gamma, thresh, groups=groups, lanes=lanes, model=model)
+    v, k, tol_h, best = _level_impl(lv, weights, v0, gamma, thresh, groups=groups, lanes=lanes, model=model,
+                                    gate=gate, best=best, rising=rising)
     v = jnp.where(jnp.isfinite(v).all(axis=1, keepdims=True), v, v0)
-    return v, k
+    return v, k, np.asarray(tol_h), best

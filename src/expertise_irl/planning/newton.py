@@ -34,7 +34,7 @@ from scipy.special import logsumexp
 
 from ..mdp import TabularMDP
 
-__all__ = ["MAX_STEPS", "SOFT_MODELS", "newton_values"]
+__all__ = ["MAX_STEPS", "SOFT_MODELS", "newton_values", "residuals"]
 
 #: The models whose backup is smooth (a log-sum-exp): Newton's method applies.
 SOFT_MODELS = ("maxent", "maxent-relative")
@@ -102,6 +102,18 @@ def _chord(walk: _Walk, v: np.ndarray, threshold: float) -> tuple[np.ndarray, in
         last = change
         out[act] -= lu.solve(res)
     return best, step
+
+
+def residuals(mdp: TabularMDP, theta, beta, value, *, model: str = "maxent") -> np.ndarray:
+    """``[H]`` the largest change ``max_s |v − T v|`` one Jacobi backup makes to each hypothesis'
+    scaled values ``v = value/β`` (``value [H, S]`` in reward units), over the non-terminal states."""
+    theta, beta = np.atleast_2d(theta), np.atleast_1d(np.asarray(beta, float))
+    out = np.empty(len(beta))
+    for h in range(len(beta)):
+        walk = _Walk(mdp, theta[h], float(beta[h]), model)
+        v = np.asarray(value[h], float) / beta[h]
+        out[h] = np.max(np.abs(v[walk.act] - walk.backup(v)[0]), initial=0.0)
+    return out
 
 
 def newton_values(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str = "maxent",

@@ -134,6 +134,9 @@ class SoftSolution(NamedTuple):
         model: the observation model solved (:mod:`expertise_irl.models`).
         newton_steps: ``[H]`` chord and Newton steps each hypothesis took (:mod:`.newton`), or
             None where the solve did not use Newton's method.
+        stopped_tol: for :func:`solve_screened`, ``[H]`` the tolerance the values of each
+            hypothesis its gate stopped certify (0 where the hypothesis met ``tol``); else None.
+        gate_best: for :func:`solve_screened`, the best certain log mass its gate saw.
     """
 
     value: np.ndarray
@@ -142,6 +145,8 @@ class SoftSolution(NamedTuple):
     beta: np.ndarray
     model: str = DEFAULT_MODEL
     newton_steps: np.ndarray | None = None
+    stopped_tol: np.ndarray | None = None
+    gate_best: float = -math.inf
 
     @property
     def q(self) -> np.ndarray:
@@ -310,16 +315,24 @@ def _uses_newton(mdp: TabularMDP, model: str, dtype: str, tol: float, newton: bo
 
 
 def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:
-    """Sweeps to :data:`NEWTON_FROM`, Newton's method from there, then the pool's plain sweeps to
-    ``tol`` (which certify it); ``iterations`` counts both sweeps, ``newton_steps`` the steps."""
-    from .newton import newton_values
+    """Sweeps to :data:`NEWTON_FROM` (none where ``v_init`` is that close already: one backup
+    each, counted as a sweep), Newton's method from there, then the pool's plain sweeps to ``tol``
+    (which certify it); ``iterations`` counts both sweeps, ``newton_steps`` the steps."""
+    from .newton import newton_values, residuals
 
-    rough = _solve(mdp, theta, beta, dtype="float64", v_init=v_init, progress=progress,
-                   **{**opts, "tol": NEWTON_FROM, "max_iter": None})
-    values, steps = newton_values(mdp, theta, beta, rough.value, opts["tol"], model=opts["model"])
+    g, model = mdp.gamma, opts["model"]
+    near = v_init is not None and np.all(residuals(mdp, theta, beta, v_init, model=model)
+                                         <= NEWTON_FROM * (1 - g) / g)
+    if near:
+        start, rough_sweeps = np.asarray(v_init, float), np.ones(len(beta), np.int64)
+    else:
+        rough = _solve(mdp, theta, beta, dtype="float64", v_init=v_init, progress=progress,
+                       **{**opts, "tol": NEWTON_FROM, "max_iter": None})
+        start, rough_sweeps = rough.value, rough.iterations
+    values, steps = newton_values(mdp, theta, beta, start, opts["tol"], model=model)
     sol = _solve(mdp, theta, beta, dtype="float64", v_init=values, progress=None,
                  **{**opts, "method": "sweeps"})
-    return sol._replace(iterations=sol.iterations + rough.iterations, newton_steps=steps)
+    return sol._replace(iterations=sol.iterations + rough_sweeps, newton_steps=steps)
 
 
 def _check_method(mdp: TabularMDP, method: str | None) -> str:
@@ -371,32 +384,58 @@ def batch_limit(mdp: TabularMDP, memory: int | None = None) -> int:
     return max(MIN_BATCH, int(kernel.MEMORY_SHARE * memory) // per_hypothesis)
 
 
-def _solve(mdp, theta, beta, *, v_init, progress, **opts) -> SoftSolution:
+def solve_screened(mdp: TabularMDP, theta, beta, gate, *, tol: float, v_init: np.ndarray | None = None,
+                   progress: Callable[[int, int], None] | None = None, **kw) -> SoftSolution:
+    """:func:`solve` (same keywords) with certified elimination in the sweeps: ``gate``
+    (:class:`.screening.Gate`, its ``base`` for these hypotheses in this order) stops each
+    hypothesis whose log-likelihood is certainly too low as soon as that is certain, with values
+    whose tolerance ``stopped_tol`` reports. Where the gate does not apply (``boltzmann``, float32,
+    Newton's finish) this is :func:`solve`, with ``stopped_tol`` all 0."""
+    enable_float64()
+    theta, beta = _as_hypotheses(mdp, theta, beta)
+    model, dtype = kw.get("model", DEFAULT_MODEL), kw.get("dtype", "float64")
+    check_model(model)
+    if (model == "boltzmann" or dtype != "float64" or kw.get("float32_start")
+            or _uses_newton(mdp, model, dtype, tol, kw.get("newton"))):
+        sol = solve(mdp, theta, beta, tol=tol, v_init=v_init, progress=progress, **kw)
+        return sol._replace(stopped_tol=np.zeros(len(beta)))
+    opts = {"tol": tol, "max_iter": kw.get("max_iter"), "chunk_size": kw.get("chunk_size"), "model": model,
+            "over_relax": kw.get("over_relax", True), "lanes": kw.get("lanes"),
+            "method": _check_method(mdp, kw.get("method"))}
+    return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, gate=gate, **opts)
+
+
+def _solve(mdp, theta, beta, *, v_init, progress, gate=None, **opts) -> SoftSolution:
     """:func:`_solve_all` in batches of at most :func:`batch_limit` hypotheses, in the order given,
-    into one answer (each hypothesis' sweeps are its own lane's, so batching changes no result)."""
+    into one answer (each hypothesis' sweeps are its own lane's, so batching changes no result; a
+    gate's best carries from batch to batch)."""
     H, limit = len(beta), batch_limit(mdp)
     if H <= limit:
-        return _solve_all(mdp, theta, beta, v_init=v_init, progress=progress, **opts)
+        return _solve_all(mdp, theta, beta, v_init=v_init, progress=progress, gate=gate, **opts)
     value, log_pi = np.empty((H, mdp.n_states)), np.empty((H, mdp.n_states, mdp.n_actions))
-    iters = np.empty(H, dtype=np.int64)
+    iters, stopped = np.empty(H, dtype=np.int64), np.zeros(H)
+    best = -math.inf if gate is None else gate.best
     for lo in range(0, H, limit):
         hi = min(lo + limit, H)
         tick = None if progress is None else (lambda done, _, lo=lo: progress(lo + done, H))
+        part_gate = None if gate is None else gate._replace(base=np.asarray(gate.base)[lo:hi], best=best)
         part = _solve_all(mdp, theta[lo:hi], beta[lo:hi], v_init=None if v_init is None else v_init[lo:hi],
-                          progress=tick, **opts)
+                          progress=tick, gate=part_gate, **opts)
         value[lo:hi], log_pi[lo:hi], iters[lo:hi] = part.value, part.log_policy, part.iterations
+        if gate is not None:
+            stopped[lo:hi], best = part.stopped_tol, part.gate_best
         del part
-    return SoftSolution(value, log_pi, iters, beta.copy(), opts["model"])
+    return SoftSolution(value, log_pi, iters, beta.copy(), opts["model"],
+                        stopped_tol=None if gate is None else stopped, gate_best=best)
 
 
 def _solve_all(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, progress, model,
-               over_relax, lanes, method="sweeps") -> SoftSolution:
+               over_relax, lanes, method="sweeps", gate=None) -> SoftSolution:
     if not (tol > 0 and math.isfinite(tol)):
         raise InputError(f"tol must be a positive number, got {tol}")
     if dtype not in ("float64", "float32"):
         raise InputError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
-    jdtype = jnp.float64 if dtype == "float64" else jnp.float32
-    H, S, A = theta.shape[0], mdp.n_states, mdp.n_actions
+    H, S = theta.shape[0], mdp.n_states
     if max_iter is None:
         max_iter = default_max_iter(mdp, theta, beta, tol)
     if lanes is None:  # small sets take the default rather than pause to measure one
@@ -412,7 +451,6 @@ def _solve_all(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, pr
     if chunk_size is None:
         chunk_size = kernel.default_chunk_size(mdp, np.dtype(dtype), lanes=lanes)
     groups = max(1, -(-min(int(chunk_size), H) // lanes))
-    slots = groups * lanes
     prep = kernel.prepared(mdp, dtype)
     scaled0 = np.zeros((H, prep.n_rows))
     if v_init is not None:
@@ -426,70 +464,127 @@ def _solve_all(mdp, theta, beta, *, tol, max_iter, chunk_size, dtype, v_init, pr
     weights = mdp.reward_weights(theta) / beta[:, None]
     # Hand out the slow (high-β) hypotheses first so the pool does not end on a long tail.
     order = np.argsort(-beta, kind="stable")
-    # Batches only exist to report progress; all have one size, so JAX compiles once.
-    n_batches = 1 if progress is None else max(1, min(20, H // (4 * slots)))
-    size = -(-H // n_batches)
+    gate = gate if dtype == "float64" else None
+    jdtype = jnp.float64 if dtype == "float64" else jnp.float32
     consts = (jnp.asarray(mdp.gamma, dtype=jdtype), jnp.asarray(tol, dtype=jdtype), jnp.asarray(max_iter))
-    value = np.empty((H, S))
-    log_pi = np.empty((H, S, A))  # every row is written below, -inf included
-    iters = np.empty(H, dtype=np.int64)
-    start_sweeps = np.zeros(H, dtype=np.int64)  # the start pool's cost, counted in sweeps
+    pool = _Pool(mdp, prep, weights, beta, theta, consts, groups, lanes, model, over_relax, gate)
     if method == "levels" or (method == "jumps" and dtype == "float64"):
-        scaled0, start_sweeps = _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts,
-                                             groups, lanes, model, cold=v_init is None)
+        scaled0, pool.start_sweeps, pool.stopped, pool.best = _pool_starts(
+            method, mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model,
+            cold=v_init is None, gate=gate, best=pool.best)
+    if gate is not None:  # hypotheses the start pool eliminated go last, and the sweep pool skips them
+        order = np.concatenate([order[pool.stopped[order] == 0], order[pool.stopped[order] > 0]])
+    # Batches only exist to report progress; all have one size, so JAX compiles once.
+    n_batches = 1 if progress is None else max(1, min(20, H // (4 * groups * lanes)))
+    size = -(-H // n_batches)
     for start in range(0, H, size):
-        idx = order[start:start + size]
-        n = len(idx)
-        padded = np.concatenate([idx, np.repeat(idx[-1:], size - n)])  # one shape for every batch
-        v, it, delta = kernel.solve_pool(prep, jnp.asarray(weights[padded]), jnp.asarray(scaled0[padded]),
-                                         *consts, groups=groups, lanes=lanes, model=model, relax=over_relax)
-        delta = np.asarray(delta)[:n]
-        if not np.all(delta == 0):  # also catches NaN
-            j = int(np.flatnonzero(~(delta == 0))[0])
-            h = int(idx[j])
-            raise ConvergenceError(
-                f"soft value iteration did not converge for hypothesis {h} "
-                f"(theta={np.round(theta[h], 6).tolist()}, beta={beta[h]:g}) within {max_iter} "
-                f"sweeps: last change {delta[j]:.3g} nats (tol {tol:g}); raise max_iter or tol"
-            )
-        iters[idx] = np.asarray(it)[:n] + start_sweeps[idx]
-        n_final = -(-size // slots) * slots  # the final backup runs on whole lane pools
-        v = jnp.concatenate([v, jnp.repeat(v[-1:], n_final - size, 0)]) if n_final > size else v
-        w_final = weights[np.concatenate([padded, np.repeat(padded[-1:], n_final - size)])]
-        for lo in range(0, n, slots):  # one more backup gives normalised log-policies
-            vf, lp = kernel.final_policies(prep, w_final[lo:lo + slots], v[lo:lo + slots], mdp.gamma,
-                                           groups=groups, model=model)
-            m = min(slots, n - lo)
-            hs = idx[lo:lo + m]
-            value[hs] = np.asarray(vf)[:m] * beta[hs, None]  # terminal states: 0
-            log_pi[hs] = np.asarray(lp)[:m]  # [m, S, A] in state order, -inf where unavailable
+        pool.run(order[start:start + size], size, scaled0)
         if progress is not None:
             progress(min(start + size, H), H)
-    return SoftSolution(value, log_pi, iters, beta.copy(), model)
+    return pool.solution()
 
 
-def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model, cold):
+class _Pool:
+    """The sweep pool's batches of one :func:`_solve_all` and what they write: values, log-policies,
+    sweeps and (with a gate) each stopped hypothesis' tolerance and the best certain log mass."""
+
+    def __init__(self, mdp, prep, weights, beta, theta, consts, groups, lanes, model, over_relax, gate):
+        self.mdp, self.prep, self.weights, self.beta, self.theta = mdp, prep, weights, beta, theta
+        self.consts, self.groups, self.lanes, self.model = consts, groups, lanes, model
+        self.relax, self.gate = over_relax, gate
+        H, S, A = theta.shape[0], mdp.n_states, mdp.n_actions
+        self.value = np.empty((H, S))
+        self.log_pi = np.empty((H, S, A))  # every row is written below, -inf included
+        self.iters = np.empty(H, dtype=np.int64)
+        self.start_sweeps = np.zeros(H, dtype=np.int64)  # the start pool's cost, counted in sweeps
+        self.stopped = np.zeros(H)  # tol_h of the hypotheses a gate stopped
+        self.best = -math.inf if gate is None else float(gate.best)
+
+    def run(self, idx: np.ndarray, size: int, scaled0: np.ndarray) -> None:
+        """Solve hypotheses ``idx`` (those a start pool's gate stopped last) from ``scaled0``, padded
+        to ``size``, and write their results."""
+        from .screening import gate_arrays
+
+        n, slots = len(idx), self.groups * self.lanes
+        padded = np.concatenate([idx, np.repeat(idx[-1:], size - n)])  # one shape for every batch
+        live = int(np.sum(self.stopped[idx] == 0))
+        g = None if self.gate is None else gate_arrays(self.gate, self.prep.rows, padded, jnp.float64)
+        v, it, delta, self.best = kernel.solve_pool(
+            self.prep, jnp.asarray(self.weights[padded]), jnp.asarray(scaled0[padded]), *self.consts,
+            groups=self.groups, lanes=self.lanes, model=self.model, relax=self.relax, gate=g, best=self.best,
+            n_live=live)
+        v, it, delta = np.array(v), np.array(it), np.array(delta)[:n]
+        v[live:n], it[live:n], delta[live:] = scaled0[idx[live:]], 0, -self.stopped[idx[live:]]
+        self._check(idx, delta)
+        self.stopped[idx] = np.maximum(-delta, 0.0)
+        self.iters[idx] = it[:n] + self.start_sweeps[idx]
+        n_final = -(-size // slots) * slots  # the final backup runs on whole lane pools
+        v = np.concatenate([v, np.repeat(v[-1:], n_final - size, 0)]) if n_final > size else v
+        w_final = self.weights[np.concatenate([padded, np.repeat(padded[-1:], n_final - size)])]
+        for lo in range(0, n, slots):  # one more backup gives normalised log-policies
+            vf, lp = kernel.final_policies(self.prep, w_final[lo:lo + slots], jnp.asarray(v[lo:lo + slots]),
+                                           self.mdp.gamma, groups=self.groups, model=self.model)
+            m = min(slots, n - lo)
+            hs = idx[lo:lo + m]
+            self.value[hs] = np.asarray(vf)[:m] * self.beta[hs, None]  # terminal states: 0
+            self.log_pi[hs] = np.asarray(lp)[:m]  # [m, S, A] in state order, -inf where unavailable
+
+    def _check(self, idx: np.ndarray, delta: np.ndarray) -> None:
+        """ConvergenceError unless every hypothesis met its tolerance (0) or was stopped (< 0)."""
+        if np.all(delta <= 0):  # also catches NaN
+            return
+        j = int(np.flatnonzero(~(delta <= 0))[0])
+        h, theta, beta = int(idx[j]), self.theta, self.beta
+        raise ConvergenceError(
+            f"soft value iteration did not converge for hypothesis {h} "
+            f"(theta={np.round(theta[h], 6).tolist()}, beta={beta[h]:g}) within {int(self.consts[2])} "
+            f"sweeps: last change {delta[j]:.3g} nats (tol {float(self.consts[1]):g}); raise max_iter or tol"
+        )
+
+    def solution(self) -> SoftSolution:
+        stopped = None if self.gate is None else self.stopped
+        return SoftSolution(self.value, self.log_pi, self.iters, self.beta.copy(), self.model,
+                            stopped_tol=stopped, gate_best=self.best)
+
+
+def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, groups, lanes, model, cold,
+                 gate=None, best=-math.inf):
     """Start values for the sweep pool from ``method``'s start pool (``jumps``:
     :func:`.kernels.jump_start`; ``levels``: :func:`.level_order.level_start`, from
     :func:`.level_order.approach_start` when ``cold``, i.e. without the caller's ``v_init``),
     hypotheses handed out in the solve's order, and what they cost ``[H]`` in sweeps (a jump: its
-    sweeps and one backup; a symmetric level sweep: two; the approach pass: one)."""
+    sweeps and one backup; a symmetric level sweep: two; the approach pass: one).
+
+    With a ``gate`` (:mod:`.screening`), ``levels`` hands the hypotheses out in the order of their
+    log-likelihood sums at the start values, likeliest first (the best certain bound then comes
+    early), and stops those it eliminates. Returns ``(values, cost, stopped tol_h [H] (0: not
+    stopped), best certain log mass)``."""
     gamma, tol = consts[0], consts[1]
     thresh = tol * (1.0 - gamma) / gamma
+    stopped = np.zeros(len(order))
     w, v0 = jnp.asarray(weights[order]), jnp.asarray(scaled0[order])
     if method == "jumps":
         v, k = kernel.jump_start(prep, w, v0, gamma, thresh, groups=groups, lanes=lanes, model=model)
         per = kernel.JUMP_SWEEPS + 1
     else:
         from . import level_order
+        from .screening import gate_arrays, rough_log_likelihood
 
         lv = level_order.levels_of(mdp, prep, dtype)
         if cold:
             v0 = level_order.approach_start(lv, w, v0, gamma, lanes=lanes, model=model)
-        v, k = level_order.level_start(lv, w, v0, gamma, thresh, groups=groups, lanes=lanes, model=model)
+        g = None
+        if gate is not None:
+            likely = np.argsort(-rough_log_likelihood(gate._replace(base=np.asarray(gate.base)[order]),
+                                                      np.asarray(v0), prep.rows), kind="stable")
+            order, w, v0 = order[likely], w[likely], v0[likely]
+            g = gate_arrays(gate, prep.rows, order, jnp.float64)
+        v, k, tol_h, best = level_order.level_start(lv, w, v0, gamma, thresh, groups=groups, lanes=lanes,
+                                                    model=model, gate=g, best=best, rising=cold)
+        stopped[order] = tol_h
         per = 2
     out = np.empty_like(scaled0)
     cost = np.empty(len(order), dtype=np.int64)
     out[order] = np.asarray(v)
     cost[order] = per * np.asarray(k) + (method == "levels" and cold)
-    return out, cost
+    return out, cost, stopped, best

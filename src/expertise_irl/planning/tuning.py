@@ -239,7 +239,7 @@ def _measure(dtype: str) -> LaneChoice:
         best = np.inf
         for i in range(3):
             t = time.perf_counter()
-            _, it, _ = kernels.solve_pool(prep, weights, v0, *consts, groups=slots // lanes, lanes=lanes)
+            _, it, _, _ = kernels.solve_pool(prep, weights, v0, *consts, groups=slots // lanes, lanes=lanes)
             sweeps = int(np.asarray(it).sum())  # blocks until done
             if i:
                 best = min(best, time.perf_counter() - t)

@@ -1,0 +1,158 @@
+"""Certified elimination inside the sweeps (planning.screening): the one-sided bound of values
+below the solution holds against an exact solve, a gate that eliminates nothing changes no result,
+and every hypothesis a gate stops is certainly negligible."""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from expertise_irl.demos.simulation import simulate
+from expertise_irl.inference.certified import state_weights, telescoped_log_likelihood
+from expertise_irl.planning import kernels
+from expertise_irl.planning.screening import Gate, GateArrays, gate_arrays, gate_check
+from expertise_irl.planning.soft_vi import solve, solve_screened
+from expertise_irl.planning.table_likelihood import log_likelihood
+from expertise_irl.worlds.zones import parse_map
+
+SMALL = """
+S....s
+S.xx..
+S.xx.G
+..>>>.
+"""
+
+
+@pytest.fixture(scope="module")
+def small():
+    mdp = parse_map(SMALL, name="screening").to_mdp()
+    rng = np.random.default_rng(7)
+    # an off-grid person: θ from a Dirichlet, β log-uniform
+    trajs = simulate(mdp, rng.dirichlet(np.ones(mdp.n_features)), float(np.exp(rng.uniform(-1, 1))), 6, rng,
+                     max_steps=40)
+    return mdp, trajs
+
+
+def _gate(mdp, trajs, theta, beta, margin, best=-math.inf):
+    w = state_weights(mdp, [trajs])
+    support = np.flatnonzero(w)
+    basis = mdp.reward_basis()[trajs.state, trajs.action].sum(axis=0)
+    base = mdp.reward_weights(theta) @ basis / beta
+    return Gate(support, w[support], base, float(np.abs(w).sum()), float(w[w > 0].sum()), margin, best,
+                len(trajs.state))
+
+
+def _exact_ll(mdp, trajs, theta, beta, model="maxent"):
+    sol = solve(mdp, theta, beta, tol=1e-12, model=model)
+    return log_likelihood(np.asarray(sol.log_policy), trajs.state, trajs.action)
+
+
+@pytest.mark.parametrize("model", ["maxent", "maxent-relative"])
+def test_values_below_the_solution_bound_the_log_likelihood_from_one_side(small, model):
+    """Plain sweeps from values far below the solution raise every value; the exact log-likelihood
+    then lies in [LL − W₋·tol_h, LL + W₊·tol_h] (tol_h = γ/(1 − γ)·change), and W₊ (the ends of
+    episodes that reached no goal) is a small part of Σ|w|."""
+    mdp, trajs = small
+    rng = np.random.default_rng(3)
+    H = 8
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-2, 2, H))
+    prep = kernels.prepared(mdp, "float64")
+    weights = jnp.asarray(mdp.reward_weights(theta) / beta[:, None])
+    v = np.full((H, prep.n_rows), -50.0 / (1 - mdp.gamma))
+    v[:, -1] = 0.0  # the zero row
+    v = jnp.asarray(v)
+    g = _gate(mdp, trajs, theta, beta, -30.0)
+    exact = _exact_ll(mdp, trajs, theta, beta, model)
+    for _ in range(12):
+        before = v
+        v, d = jax_sweep(prep, weights, v, mdp.gamma, model)
+        rose = np.asarray(jnp.min(v - before, axis=1)) >= 0
+        assert rose.all()
+        tol_h = mdp.gamma / (1 - mdp.gamma) * np.asarray(d)
+        values = np.asarray(v)[:, prep.rows] * beta[:, None]
+        ll, rounding = telescoped_log_likelihood(mdp, [trajs], theta, beta, values, model)
+        slack = rounding + 1e-12 * g.factor  # the exact solve's own tolerance
+        assert np.all(exact <= ll + g.positive * tol_h + slack)
+        assert np.all(exact >= ll - (g.factor - g.positive) * tol_h - slack)
+    assert g.positive <= 0.35 * g.factor
+
+
+def jax_sweep(prep, weights, v, gamma, model):
+    """One plain red-black sweep of every hypothesis (one lane each): ``(v [H, rows], change [H])``."""
+    out, d = kernels.sweep(prep, weights.T, v.T, jnp.asarray(gamma), model)
+    return out.T, d
+
+
+def test_the_check_stops_only_lanes_below_the_best_by_the_margin():
+    """gate_check on hand-made lanes: the best certain log mass is the largest lower bound of the
+    busy lanes; a lane stops when its upper bound lies below it by more than the margin, with the
+    one-sided bound where its values are below the solution."""
+    g = GateArrays(jnp.asarray([0]), jnp.asarray([-1.0]), jnp.asarray([0.0, 0.0, 0.0, 0.0]),
+                   jnp.asarray(10.0), jnp.asarray(1.0), jnp.asarray(-5.0), jnp.asarray(0.0))
+    v = jnp.asarray([[0.0], [20.0], [6.4], [6.4]])  # LL = -v
+    d = jnp.asarray([0.1, 0.1, 0.1, 0.1])
+    lane_h = jnp.arange(4)
+    stop, best, tol_h = gate_check(g, v, d, jnp.zeros(4), lane_h, jnp.ones(4, bool), -jnp.inf, 1.0,
+                                   jnp.asarray([False, False, True, False]))
+    np.testing.assert_allclose(np.asarray(tol_h), 0.1)
+    assert float(best) == pytest.approx(-1.0)  # lane 0: 0 − 10·0.1
+    # lane 1: −20 + 1 < −6 ; lane 2 (below): −6.4 + 1·0.1 < −6 ; lane 3 (two-sided): −6.4 + 1 > −6
+    np.testing.assert_array_equal(np.asarray(stop), [False, True, True, False])
+    idle = gate_check(g, v, d, jnp.zeros(4), lane_h, jnp.asarray([False, True, True, True]), -jnp.inf, 1.0,
+                      jnp.zeros(4, bool))
+    assert float(idle[1]) == pytest.approx(-6.4 - 1.0)  # an idle lane's bound is not counted
+
+
+@pytest.mark.parametrize("method", ["sweeps", "levels"])
+def test_a_gate_that_eliminates_nothing_changes_no_result(small, method):
+    mdp, trajs = small
+    rng = np.random.default_rng(5)
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=12), np.exp(rng.uniform(-2, 2, 12))
+    plain = solve(mdp, theta, beta, tol=1e-3, method=method)
+    gated = solve_screened(mdp, theta, beta, _gate(mdp, trajs, theta, beta, -math.inf), tol=1e-3,
+                           method=method)
+    np.testing.assert_array_equal(gated.value, plain.value)
+    np.testing.assert_array_equal(gated.iterations, plain.iterations)
+    assert np.all(gated.stopped_tol == 0) and np.isfinite(gated.gate_best)
+
+
+@pytest.mark.parametrize("method", ["sweeps", "levels"])
+def test_every_hypothesis_a_gate_stops_is_certainly_negligible(small, method):
+    """A set of 48 hypotheses off any grid: the gate stops at least half the negligible ones (in
+    fewer sweeps than they need to converge), each stopped one's exact log-likelihood is within its reported tolerance's bound of
+    its values' sum, and its exact posterior mass is below ``exp(margin)`` times the best one's."""
+    mdp, trajs = small
+    rng = np.random.default_rng(9)
+    H = 48
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-3, 2, H))
+    margin = math.log(1e-12 / H)
+    gate = _gate(mdp, trajs, theta, beta, margin)
+    sol = solve_screened(mdp, theta, beta, gate, tol=0.1, method=method)
+    exact = _exact_ll(mdp, trajs, theta, beta)
+    stopped, negligible = sol.stopped_tol > 0, exact < exact.max() + margin
+    assert np.all(negligible[stopped])
+    # the others of the 19 converge to the loose tol before their bounds part (on this small map)
+    assert stopped.sum() >= negligible.sum() // 2 >= 8
+    assert sol.gate_best <= exact.max()
+    ll, rounding = telescoped_log_likelihood(mdp, [trajs], theta, beta, sol.value)
+    err = gate.factor * sol.stopped_tol + rounding
+    assert np.all(np.abs(ll - exact)[stopped] <= err[stopped])
+    plain = solve(mdp, theta, beta, tol=0.1, method=method)
+    assert np.all(sol.iterations[stopped] <= plain.iterations[stopped])
+    assert sol.iterations.sum() < plain.iterations.sum()
+    np.testing.assert_array_equal(sol.value[~stopped], plain.value[~stopped])
+
+
+def test_gate_arrays_pad_the_support_with_zero_weights(small):
+    mdp, trajs = small
+    prep = kernels.prepared(mdp, "float64")
+    theta, beta = np.full((3, mdp.n_features), 1.0 / mdp.n_features), np.array([0.5, 1.0, 2.0])
+    gate = _gate(mdp, trajs, theta, beta, -30.0)
+    g = gate_arrays(gate, prep.rows, np.array([2, 0, 1]), jnp.float64)
+    k = len(gate.states)
+    assert g.rows.shape[0] >= max(k, 8) and g.rows.shape[0] & (g.rows.shape[0] - 1) == 0
+    np.testing.assert_array_equal(np.asarray(g.weights)[k:], 0.0)
+    np.testing.assert_array_equal(np.asarray(g.base), gate.base[[2, 0, 1]])
