@@ -91,3 +91,26 @@ def test_a_chord_that_gets_nowhere_leaves_the_sweeps_to_finish(plan, monkeypatch
     assert np.max(np.abs(sol.value - exact.value) / b[:, None]) <= 1e-9 + 1e-12
     with pytest.raises(ValueError, match="smooth backup"):
         newton.newton_values(mdp, theta, b, rough.value, 1e-9, model="boltzmann")
+
+
+@pytest.mark.parametrize("model", ["maxent", "maxent-relative"])
+def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(plan, model):
+    """certified_backups: values solved to 1e-11 pass for tol 1e-9 and come back as the pool's last
+    backup gives them (value and normalised log-policy, terminal rows −inf); rough values (0.1 nats)
+    are refused; a repeated hypothesis gets the same answer as its first."""
+    mdp, theta = plan
+    b = np.array([0.1, 1.0, 10.0, 1.0, 0.5, 2.0])
+    th = theta.copy()
+    th[3] = th[1]  # hypothesis 3 repeats hypothesis 1
+    close = solve(mdp, th, b, tol=1e-11, model=model, newton=False)
+    out = newton.certified_backups(mdp, th, b, close.value, 1e-9, model=model)
+    assert out is not None
+    value, log_pi = out
+    assert np.max(np.abs(value - close.value) / b[:, None]) <= 1e-11
+    fin = np.isfinite(close.log_policy)
+    np.testing.assert_array_equal(np.isfinite(log_pi), fin)
+    assert np.max(np.abs(log_pi[fin] - close.log_policy[fin])) <= 1e-10
+    np.testing.assert_array_equal(value[3], value[1])
+    np.testing.assert_array_equal(value[:, mdp.terminal], 0.0)
+    rough = solve(mdp, th, b, tol=0.1, model=model, newton=False)
+    assert newton.certified_backups(mdp, th, b, rough.value, 1e-9, model=model) is None

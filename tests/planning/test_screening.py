@@ -122,8 +122,9 @@ def test_a_gate_that_eliminates_nothing_changes_no_result(small, method):
 @pytest.mark.parametrize("method", ["sweeps", "levels"])
 def test_every_hypothesis_a_gate_stops_is_certainly_negligible(small, method):
     """A set of 48 hypotheses off any grid: the gate stops at least half the negligible ones (in
-    fewer sweeps than they need to converge), each stopped one's exact log-likelihood is within its reported tolerance's bound of
-    its values' sum, and its exact posterior mass is below ``exp(margin)`` times the best one's."""
+    fewer sweeps than they need to converge), each stopped one's exact log-likelihood is within
+    its reported tolerance's bound of its values' sum, and its exact posterior mass is below
+    ``exp(margin)`` times the best one's."""
     mdp, trajs = small
     rng = np.random.default_rng(9)
     H = 48

@@ -15,8 +15,8 @@ every kernel), and :func:`sweep` is also the fixed-point map of the differentiab
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
 costs the sum of its members' sweeps, not its slowest member's times the batch size. Once
-none is left to hand out, on a large MDP the busy lanes move into half the lane groups
-whenever they fit (:func:`shrink_floor`), so the last few hypotheses do not sweep idle lanes
+none is left to hand out, on a large MDP the busy lanes move into one lane group as soon as
+they fit in it (:func:`shrink_floor`), so the last few hypotheses do not sweep idle lanes
 with them.
 
 Over-relaxation. A lane whose Gauss–Seidel sweeps contract at the slowest possible rate
@@ -169,9 +169,11 @@ MEMORY_SHARE = 0.25
 #: Copies of one lane's values the pool holds at once (values, the over-relaxation's saved values,
 #: the jump's values and successors, the backups' temporaries), for sizing the pool from memory.
 LANE_COPIES = 8
-#: Pools over MDPs of at least this many solver rows shrink to half their lane groups once no
-#: hypothesis is left to hand out and the busy lanes fit in half (each size compiles once). On
-#: smaller MDPs a sweep of the idle lanes costs less than the compilation.
+#: Pools over MDPs of at least this many solver rows move to one lane group once no hypothesis is
+#: left to hand out and the busy lanes fit in it (each pool size compiles once). On smaller MDPs a
+#: sweep of the idle lanes costs less than the compilation. One step rather than halvings: at 200 ×
+#: 200 (95 hypotheses, 8 groups of 4 lanes) halving compiled 3 more pool sizes and took 20.5 s, one
+#: step 17.3–17.9 s, no shrinking 23.2 s (100 × 100: 8.8 s against 7.5 s).
 SHRINK_MIN_ROWS = 10_000
 
 
@@ -447,22 +449,22 @@ def _repack_pool(carry, *, groups: int):
 
 
 def shrink_floor(n_rows: int, groups: int, lanes: int) -> int:
-    """Busy lanes at or below which a pool with nothing left to hand out moves to half its groups
+    """Busy lanes at or below which a pool with nothing left to hand out moves to one lane group
     (-1: never, for one group or an MDP of fewer than :data:`SHRINK_MIN_ROWS` solver rows)."""
-    return (groups // 2) * lanes if groups > 1 and n_rows >= SHRINK_MIN_ROWS else -1
+    return lanes if groups > 1 and n_rows >= SHRINK_MIN_ROWS else -1
 
 
 def drain(run, repack_to, carry, n_rows: int, groups: int, lanes: int):
     """Run a pool (``run(carry, floor, groups)``, whose lane flags are ``carry[3]``) until its lanes
-    are idle: once nothing is left to hand out, a pool of half the groups takes the busy lanes
-    (``repack_to(carry, groups)``) as soon as they fit in it, rather than sweeping idle lanes to
-    the end of the longest. Returns the last carry."""
+    are idle: once nothing is left to hand out, a pool of one group takes the busy lanes
+    (``repack_to(carry, 1)``) as soon as they fit in it, rather than sweeping idle lanes to the end
+    of the longest. Returns the last carry."""
     while True:
         floor = shrink_floor(n_rows, groups, lanes)
         carry = run(carry, jnp.asarray(floor), groups)
         if floor < 0 or not bool(jnp.any(carry[3])):
             return carry
-        groups //= 2
+        groups = 1
         carry = repack_to(carry, groups)
 
 

@@ -252,8 +252,8 @@ def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
     :data:`LEVEL_GRACE`), after :data:`LEVEL_MAX`, or when it is not finite (its values are then
     replaced by its start ``v0``, for the pool to solve from there). Each hypothesis' result
     depends on its own weights and start only, not on its lane or the others in the pool. On a
-    large MDP the pool moves to half its lane groups whenever its busy lanes fit, once nothing is
-    left to hand out (:func:`.kernels.shrink_floor`).
+    large MDP the pool moves to one lane group once its busy lanes fit in it and nothing is left
+    to hand out (:func:`.kernels.shrink_floor`).
 
     With ``gate`` (:class:`.screening.GateArrays` for these hypotheses), a hypothesis also stops
     when it is certainly eliminated (:mod:`.screening`), starting from the certain log mass

@@ -34,7 +34,7 @@ from scipy.special import logsumexp
 
 from ..mdp import TabularMDP
 
-__all__ = ["MAX_STEPS", "SOFT_MODELS", "newton_values", "residuals"]
+__all__ = ["MAX_STEPS", "SOFT_MODELS", "certified_backups", "newton_values", "residuals"]
 
 #: The models whose backup is smooth (a log-sum-exp): Newton's method applies.
 SOFT_MODELS = ("maxent", "maxent-relative")
@@ -150,7 +150,44 @@ def newton_values(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str
         v, steps = _chord(_Walk(mdp, theta[h], float(beta[h]), model), value[h] / beta[h], threshold)
         return v * beta[h], steps
 
-    workers = max(1, min(len(beta), threads or os.cpu_count() or 1))
+    first, inverse = _distinct(theta, beta, value)
+    workers = max(1, min(len(first), threads or os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        done = list(pool.map(one, range(len(beta))))
-    return np.array([v for v, _ in done]).reshape(value.shape), np.array([k for _, k in done], np.int64)
+        done = list(pool.map(one, first.tolist()))
+    values = np.array([v for v, _ in done]).reshape(len(first), *value.shape[1:])[inverse]
+    return values, np.array([k for _, k in done], np.int64)[inverse]
+
+
+def _distinct(theta, beta, value) -> tuple[np.ndarray, np.ndarray]:
+    """``(first, inverse)``: one index per distinct hypothesis and start (a padded batch repeats
+    one), and for each hypothesis the position of its own in ``first``."""
+    _, first, inverse = np.unique(np.column_stack([theta, beta, value]), axis=0, return_index=True,
+                                  return_inverse=True)
+    return first, inverse.reshape(-1)
+
+
+def certified_backups(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str = "maxent"):
+    """Certify Newton's values without a pool of sweeps: one Jacobi backup ``v₁ = T v`` of each
+    hypothesis' scaled values; ``T`` is a γ-contraction, so where it changes them by at most
+    ``tol·(1 − γ)/γ`` (or the floating-point floor ``8·eps·max|v|``, as the sweeps stop)
+    ``|v₁ − v*| ≤ tol``. One more backup gives the values ``T v₁`` and the normalised log-policy of
+    ``v₁``, as the pool's last backup does. Returns ``(value [H, S] reward units, log_policy
+    [H, S, A])``, or None if any hypothesis' backup changed its values by more."""
+    theta, beta = np.atleast_2d(theta), np.atleast_1d(np.asarray(beta, float))
+    value = np.asarray(value, float)
+    S, A, g = mdp.n_states, mdp.n_actions, mdp.gamma
+    first, inverse = _distinct(theta, beta, value)
+    out_v, out_lp = np.zeros((len(first), S)), np.full((len(first), S, A), -np.inf)
+    for i, h in enumerate(first.tolist()):
+        walk = _Walk(mdp, theta[h], float(beta[h]), model)
+        v = value[h] / beta[h]
+        v1 = np.zeros(S)
+        v1[walk.act] = walk.backup(v)[0]
+        floor = 8 * np.finfo(float).eps * np.max(np.abs(v), initial=0.0)
+        if np.max(np.abs(v1 - v), initial=0.0) > max(tol * (1 - g) / g, floor):
+            return None
+        q = np.where(walk.avail, walk.r + g * v1[walk.nxt], -np.inf)
+        top = logsumexp(q, axis=1)
+        out_v[i, walk.act] = (top - walk.shift) * beta[h]
+        out_lp[i, walk.act] = q - top[:, None]
+    return out_v[inverse], out_lp[inverse]

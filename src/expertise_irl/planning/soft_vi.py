@@ -316,9 +316,10 @@ def _uses_newton(mdp: TabularMDP, model: str, dtype: str, tol: float, newton: bo
 
 def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:
     """Sweeps to :data:`NEWTON_FROM` (none where ``v_init`` is that close already: one backup
-    each, counted as a sweep), Newton's method from there, then the pool's plain sweeps to ``tol``
-    (which certify it); ``iterations`` counts both sweeps, ``newton_steps`` the steps."""
-    from .newton import newton_values, residuals
+    each, counted as a sweep), Newton's method from there, then one backup that certifies ``tol``
+    (:func:`.newton.certified_backups`) or, where it does not, the pool's plain sweeps to ``tol``;
+    ``iterations`` counts both sweeps, ``newton_steps`` the steps."""
+    from .newton import certified_backups, newton_values, residuals
 
     g, model = mdp.gamma, opts["model"]
     near = v_init is not None and np.all(residuals(mdp, theta, beta, v_init, model=model)
@@ -330,6 +331,9 @@ def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:
                        **{**opts, "tol": NEWTON_FROM, "max_iter": None})
         start, rough_sweeps = rough.value, rough.iterations
     values, steps = newton_values(mdp, theta, beta, start, opts["tol"], model=model)
+    done = certified_backups(mdp, theta, beta, values, opts["tol"], model=model)
+    if done is not None:  # one backup each certified them: two backups, counted as sweeps
+        return SoftSolution(done[0], done[1], rough_sweeps + 2, beta.copy(), model, newton_steps=steps)
     sol = _solve(mdp, theta, beta, dtype="float64", v_init=values, progress=None,
                  **{**opts, "method": "sweeps"})
     return sol._replace(iterations=sol.iterations + rough_sweeps, newton_steps=steps)
