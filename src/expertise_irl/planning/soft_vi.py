@@ -578,10 +578,11 @@ def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, grou
         if cold:
             v0 = level_order.approach_start(lv, w, v0, gamma, lanes=lanes, model=model)
         g = None
-        if gate is not None:
-            likely = np.argsort(-rough_log_likelihood(gate._replace(base=np.asarray(gate.base)[order]),
-                                                      np.asarray(v0), prep.rows), kind="stable")
-            order, w, v0 = order[likely], w[likely], v0[likely]
+        if gate is not None:  # permuted in NumPy: a JAX gather would compile for each new shape
+            v0 = np.asarray(v0)
+            likely = np.argsort(-rough_log_likelihood(gate._replace(base=np.asarray(gate.base)[order]), v0,
+                                                      prep.rows), kind="stable")
+            order, w, v0 = order[likely], weights[order[likely]], v0[likely]
             g = gate_arrays(gate, prep.rows, order, jnp.float64)
         v, k, tol_h, best = level_order.level_start(lv, w, v0, gamma, thresh, groups=groups, lanes=lanes,
                                                     model=model, gate=g, best=best, rising=cold)
