@@ -157,3 +157,31 @@ def test_gate_arrays_pad_the_support_with_zero_weights(small):
     assert g.rows.shape[0] >= max(k, 8) and g.rows.shape[0] & (g.rows.shape[0] - 1) == 0
     np.testing.assert_array_equal(np.asarray(g.weights)[k:], 0.0)
     np.testing.assert_array_equal(np.asarray(g.base), gate.base[[2, 0, 1]])
+
+
+def test_a_gated_pool_shrinks_straight_to_one_group_without_changing_any_answer(small, monkeypatch):
+    """With a gate the pool's tail is short, so a pool with nothing left to hand out moves from 4
+    lane groups straight to 1 (no size compiled in between); every hypothesis' sweeps and values
+    are those of a pool that never shrinks."""
+    mdp, trajs = small
+    rng = np.random.default_rng(13)
+    H = 24
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-2, 2, H))
+    gate = _gate(mdp, trajs, theta, beta, math.log(1e-12 / H))
+    opts = {"method": "sweeps", "lanes": 4, "chunk_size": 16, "tol": 1e-3}
+    monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 10**9)
+    whole = solve_screened(mdp, theta, beta, gate, **opts)
+    sizes = []
+    repack = kernels._repack_pool
+
+    def spy(carry, *, groups):
+        sizes.append(groups)
+        return repack(carry, groups=groups)
+
+    monkeypatch.setattr(kernels, "_repack_pool", spy)
+    monkeypatch.setattr(kernels, "SHRINK_MIN_ROWS", 0)
+    shrunk = solve_screened(mdp, theta, beta, gate, **opts)
+    assert sizes == [1]
+    np.testing.assert_array_equal(shrunk.iterations, whole.iterations)
+    np.testing.assert_array_equal(shrunk.stopped_tol, whole.stopped_tol)
+    np.testing.assert_array_equal(shrunk.value, whole.value)

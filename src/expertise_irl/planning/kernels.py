@@ -15,8 +15,8 @@ every kernel), and :func:`sweep` is also the fixed-point map of the differentiab
 Work pool. :func:`solve_pool` keeps every lane busy: when a hypothesis converges its
 values are written out and the lane takes the next unsolved hypothesis, so a batch
 costs the sum of its members' sweeps, not its slowest member's times the batch size. Once
-none is left to hand out, on a large MDP the busy lanes move into one lane group as soon as
-they fit in it (:func:`shrink_floor`), so the last few hypotheses do not sweep idle lanes
+none is left to hand out, on a large MDP the busy lanes move into half the lane groups
+whenever they fit (:func:`shrink_floor`), so the last few hypotheses do not sweep idle lanes
 with them.
 
 Over-relaxation. A lane whose Gauss–Seidel sweeps contract at the slowest possible rate
@@ -169,11 +169,12 @@ MEMORY_SHARE = 0.25
 #: Copies of one lane's values the pool holds at once (values, the over-relaxation's saved values,
 #: the jump's values and successors, the backups' temporaries), for sizing the pool from memory.
 LANE_COPIES = 8
-#: Pools over MDPs of at least this many solver rows move to one lane group once no hypothesis is
-#: left to hand out and the busy lanes fit in it (each pool size compiles once). On smaller MDPs a
-#: sweep of the idle lanes costs less than the compilation. One step rather than halvings: at 200 ×
-#: 200 (95 hypotheses, 8 groups of 4 lanes) halving compiled 3 more pool sizes and took 20.5 s, one
-#: step 17.3–17.9 s, no shrinking 23.2 s (100 × 100: 8.8 s against 7.5 s).
+#: Pools over MDPs of at least this many solver rows shrink once no hypothesis is left to hand out
+#: and the busy lanes fit in fewer groups (each size compiles once). On smaller MDPs a sweep of the
+#: idle lanes costs less than the compilation. By halving (95 hypotheses to 1e-8 at 100 × 100 with
+#: sweeps alone, 8 groups of 4 lanes: 18.7 s against 26.2 s straight to one group), but straight to
+#: one group where a gate eliminates in the sweeps (:mod:`.screening`), whose tail is short: the
+#: 200 × 200 ``infer`` took 17.3–18.7 s against 20.0 s by halving and 23.2 s without shrinking.
 SHRINK_MIN_ROWS = 10_000
 
 
@@ -448,23 +449,28 @@ def _repack_pool(carry, *, groups: int):
             best)
 
 
-def shrink_floor(n_rows: int, groups: int, lanes: int) -> int:
-    """Busy lanes at or below which a pool with nothing left to hand out moves to one lane group
-    (-1: never, for one group or an MDP of fewer than :data:`SHRINK_MIN_ROWS` solver rows)."""
-    return lanes if groups > 1 and n_rows >= SHRINK_MIN_ROWS else -1
+def shrink_floor(n_rows: int, groups: int, lanes: int, to_one: bool = False) -> int:
+    """Busy lanes at or below which a pool with nothing left to hand out moves to half its groups,
+    or with ``to_one`` to one group (-1: never, for one group or an MDP of fewer than
+    :data:`SHRINK_MIN_ROWS` solver rows)."""
+    return (1 if to_one else groups // 2) * lanes if groups > 1 and n_rows >= SHRINK_MIN_ROWS else -1
 
 
-def drain(run, repack_to, carry, n_rows: int, groups: int, lanes: int):
+def drain(run, repack_to, carry, n_rows: int, groups: int, lanes: int, to_one: bool = False):
     """Run a pool (``run(carry, floor, groups)``, whose lane flags are ``carry[3]``) until its lanes
-    are idle: once nothing is left to hand out, a pool of one group takes the busy lanes
-    (``repack_to(carry, 1)``) as soon as they fit in it, rather than sweeping idle lanes to the end
-    of the longest. Returns the last carry."""
+    are idle: once nothing is left to hand out, a pool of fewer groups takes the busy lanes
+    (``repack_to(carry, groups)``) as soon as they fit in half the groups, rather than sweeping
+    idle lanes to the end of the longest: the smallest halving that holds them, or with ``to_one``
+    one group once they fit in it. Returns the last carry."""
     while True:
-        floor = shrink_floor(n_rows, groups, lanes)
+        floor = shrink_floor(n_rows, groups, lanes, to_one)
         carry = run(carry, jnp.asarray(floor), groups)
         if floor < 0 or not bool(jnp.any(carry[3])):
             return carry
-        groups = 1
+        busy = int(jnp.sum(carry[3]))
+        groups = 1 if to_one else groups // 2
+        while groups > 1 and busy <= (groups // 2) * lanes:  # no size compiled only to shrink again
+            groups //= 2
         carry = repack_to(carry, groups)
 
 
@@ -480,7 +486,7 @@ def _pool_impl(prep: Prepared, weights, v0, gamma, tol, max_iter, *, groups: int
 
     carry = drain(run, lambda c, g: _repack_pool(c, groups=g),
                   _jit_pool_init(weights, v0, live, best, groups=groups, lanes=lanes), prep.n_rows, groups,
-                  lanes)
+                  lanes, to_one=gate is not None)
     return carry[6], carry[7], carry[8], float(carry[10])
 
 

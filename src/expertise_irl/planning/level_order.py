@@ -238,7 +238,8 @@ def _level_impl(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
                           lanes=lanes, model=model)
 
     carry = drain(run, lambda c, g: _level_repack(c, groups=g),
-                  _level_init(weights, v0, best, groups=groups, lanes=lanes), v0.shape[1], groups, lanes)
+                  _level_init(weights, v0, best, groups=groups, lanes=lanes), v0.shape[1], groups, lanes,
+                  to_one=gate is not None)
     return carry[7], carry[8], carry[9], float(carry[10])
 
 
@@ -252,8 +253,8 @@ def level_start(lv: Levels, weights, v0, gamma, thresh, *, groups: int, lanes: i
     :data:`LEVEL_GRACE`), after :data:`LEVEL_MAX`, or when it is not finite (its values are then
     replaced by its start ``v0``, for the pool to solve from there). Each hypothesis' result
     depends on its own weights and start only, not on its lane or the others in the pool. On a
-    large MDP the pool moves to one lane group once its busy lanes fit in it and nothing is left
-    to hand out (:func:`.kernels.shrink_floor`).
+    large MDP the pool moves to fewer lane groups once its busy lanes fit and nothing is left to
+    hand out (:func:`.kernels.shrink_floor`).
 
     With ``gate`` (:class:`.screening.GateArrays` for these hypotheses), a hypothesis also stops
     when it is certainly eliminated (:mod:`.screening`), starting from the certain log mass
