@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from expertise_irl.planning import newton, soft_vi
+from expertise_irl.planning.newton import _Walk
 from expertise_irl.planning.soft_vi import solve
 from expertise_irl.worlds.floorplans import generate_floor_plan
 
@@ -94,7 +95,7 @@ def test_a_chord_that_gets_nowhere_leaves_the_sweeps_to_finish(plan, monkeypatch
 
 
 @pytest.mark.parametrize("model", ["maxent", "maxent-relative"])
-def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(plan, model):
+def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(plan, model, monkeypatch):
     """certified_backups: values solved to 1e-11 pass for tol 1e-9 and come back as the pool's last
     backup gives them (value and normalised log-policy, terminal rows −inf); rough values (0.1 nats)
     are refused; a repeated hypothesis gets the same answer as its first."""
@@ -103,7 +104,10 @@ def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(pl
     th = theta.copy()
     th[3] = th[1]  # hypothesis 3 repeats hypothesis 1
     close = solve(mdp, th, b, tol=1e-11, model=model, newton=False)
+    walks = []
+    monkeypatch.setattr(newton, "_Walk", lambda *a: walks.append(a) or _Walk(*a))
     out = newton.certified_backups(mdp, th, b, close.value, 1e-9, model=model)
+    assert len(walks) == 5  # the repeated hypothesis is backed up once
     assert out is not None
     value, log_pi = out
     assert np.max(np.abs(value - close.value) / b[:, None]) <= 1e-11

@@ -91,7 +91,7 @@ def test_the_check_stops_only_lanes_below_the_best_by_the_margin():
     busy lanes; a lane stops when its upper bound lies below it by more than the margin, with the
     one-sided bound where its values are below the solution."""
     g = GateArrays(jnp.asarray([0]), jnp.asarray([-1.0]), jnp.asarray([0.0, 0.0, 0.0, 0.0]),
-                   jnp.asarray(10.0), jnp.asarray(1.0), jnp.asarray(-5.0), jnp.asarray(0.0))
+                   jnp.asarray(10.0), jnp.asarray(1.0), jnp.asarray(-5.0), jnp.asarray(0.0), jnp.zeros(4))
     v = jnp.asarray([[0.0], [20.0], [6.4], [6.4]])  # LL = -v
     d = jnp.asarray([0.1, 0.1, 0.1, 0.1])
     lane_h = jnp.arange(4)
@@ -104,6 +104,10 @@ def test_the_check_stops_only_lanes_below_the_best_by_the_margin():
     idle = gate_check(g, v, d, jnp.zeros(4), lane_h, jnp.asarray([False, True, True, True]), -jnp.inf, 1.0,
                       jnp.zeros(4, bool))
     assert float(idle[1]) == pytest.approx(-6.4 - 1.0)  # an idle lane's bound is not counted
+    # a lane below the solution sets the best with W₋·tol_h = (10 − 1)·0.1 below its sum
+    below = gate_check(g, v, d, jnp.zeros(4), lane_h, jnp.asarray([False, False, True, False]), -jnp.inf,
+                       1.0, jnp.asarray([False, False, True, False]))
+    assert float(below[1]) == pytest.approx(-6.4 - 0.9)
 
 
 @pytest.mark.parametrize("method", ["sweeps", "levels"])
@@ -152,10 +156,11 @@ def test_gate_arrays_pad_the_support_with_zero_weights(small):
     prep = kernels.prepared(mdp, "float64")
     theta, beta = np.full((3, mdp.n_features), 1.0 / mdp.n_features), np.array([0.5, 1.0, 2.0])
     gate = _gate(mdp, trajs, theta, beta, -30.0)
-    g = gate_arrays(gate, prep.rows, np.array([2, 0, 1]), jnp.float64)
+    g = gate_arrays(gate, prep.rows, np.array([2, 0, 1]), jnp.float64, prep.n_rows - 1)
     k = len(gate.states)
     assert g.rows.shape[0] >= max(k, 8) and g.rows.shape[0] & (g.rows.shape[0] - 1) == 0
     np.testing.assert_array_equal(np.asarray(g.weights)[k:], 0.0)
+    np.testing.assert_array_equal(np.asarray(g.rows)[k:], prep.n_rows - 1)  # the zero row
     np.testing.assert_array_equal(np.asarray(g.base), gate.base[[2, 0, 1]])
 
 
@@ -185,3 +190,79 @@ def test_a_gated_pool_shrinks_straight_to_one_group_without_changing_any_answer(
     np.testing.assert_array_equal(shrunk.iterations, whole.iterations)
     np.testing.assert_array_equal(shrunk.stopped_tol, whole.stopped_tol)
     np.testing.assert_array_equal(shrunk.value, whole.value)
+
+
+@pytest.mark.parametrize("method", ["sweeps", "levels"])
+def test_values_above_the_solution_keep_the_two_sided_bound(small, method):
+    """From a start above the solution (the pool's sweeps then lower values, so no lane counts as
+    below it), every hypothesis the gate stops still has its exact log-likelihood within Σ|w|·tol_h
+    of its values' sum, and is negligible."""
+    mdp, trajs = small
+    rng = np.random.default_rng(17)
+    H = 32
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-3, 2, H))
+    exact_sol = solve(mdp, theta, beta, tol=1e-12)
+    start = exact_sol.value + 40.0 * beta[:, None] * ~mdp.terminal  # 40 nats above, terminals 0
+    margin = math.log(1e-12 / H)
+    gate = _gate(mdp, trajs, theta, beta, margin)
+    sol = solve_screened(mdp, theta, beta, gate, tol=0.1, v_init=start, method=method)
+    exact = log_likelihood(np.asarray(exact_sol.log_policy), trajs.state, trajs.action)
+    stopped = sol.stopped_tol > 0
+    assert stopped.any() and np.all(exact[stopped] < exact.max() + margin)
+    ll, rounding = telescoped_log_likelihood(mdp, [trajs], theta, beta, sol.value)
+    assert np.all(np.abs(ll - exact)[stopped] <= (gate.factor * sol.stopped_tol + rounding)[stopped])
+
+
+def test_batches_and_progress_carry_the_best_bound_and_change_no_answer(small, monkeypatch):
+    """The gate's best carries from batch to batch (progress batches of the pool, and the solver's
+    memory batches): with 48 hypotheses in batches of 8 the stopped set, the values and the best
+    bound are those of one batch."""
+    from expertise_irl.planning import soft_vi
+
+    mdp, trajs = small
+    rng = np.random.default_rng(9)
+    H = 48
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-3, 2, H))
+    gate = _gate(mdp, trajs, theta, beta, math.log(1e-12 / H))
+    one = solve_screened(mdp, theta, beta, gate, tol=0.1, method="sweeps", lanes=2, chunk_size=2)
+    ticks = []
+    batched = solve_screened(mdp, theta, beta, gate, tol=0.1, method="sweeps", lanes=2, chunk_size=2,
+                             progress=lambda done, total: ticks.append(done))
+    assert len(ticks) > 1 and ticks[-1] == H
+    monkeypatch.setattr(soft_vi, "batch_limit", lambda mdp, memory=None: 8)
+    small_batches = solve_screened(mdp, theta, beta, gate, tol=0.1, method="sweeps", lanes=2, chunk_size=2)
+    for other in (batched, small_batches):
+        assert other.gate_best == pytest.approx(one.gate_best, abs=1e-9)
+        stopped = other.stopped_tol > 0
+        exact = _exact_ll(mdp, trajs, theta, beta)
+        assert stopped.any() and np.all(exact[stopped] < exact.max() + gate.margin)
+        np.testing.assert_array_equal(other.value[~stopped & (one.stopped_tol == 0)],
+                                      one.value[~stopped & (one.stopped_tol == 0)])
+
+
+def test_where_newton_applies_the_gate_sweeps_to_one_nat_and_newton_finishes_the_rest(small, monkeypatch):
+    """On a map counted as large the gated sweeps go to NEWTON_FROM; the hypotheses they did not
+    stop finish by Newton's method (steps recorded) within the tolerance of an exact solve, and the
+    stopped ones are negligible."""
+    from expertise_irl.planning import soft_vi
+
+    mdp, trajs = small
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_STATES", 1)
+    monkeypatch.setattr(soft_vi, "NEWTON_MIN_GAMMA", 0.0)
+    monkeypatch.setattr(soft_vi, "_backend", lambda: "cpu")
+    rng = np.random.default_rng(19)
+    H = 24
+    theta, beta = rng.dirichlet(np.ones(mdp.n_features), size=H), np.exp(rng.uniform(-3, 2, H))
+    gate = _gate(mdp, trajs, theta, beta, math.log(1e-12 / H))
+    sol = solve_screened(mdp, theta, beta, gate, tol=1e-9)
+    exact = solve(mdp, theta, beta, tol=1e-12, newton=False)
+    stopped = sol.stopped_tol > 0
+    assert stopped.any() and (~stopped).any()
+    # (a hypothesis the sweeps brought close enough already takes no step)
+    assert sol.newton_steps[~stopped].sum() >= 1 and np.all(sol.newton_steps[stopped] == 0)
+    err = np.max(np.abs(sol.value - exact.value), axis=1) / beta
+    assert np.all(err[~stopped] <= 1e-9 + 1e-12)
+    ll = log_likelihood(np.asarray(exact.log_policy), trajs.state, trajs.action)
+    assert np.all(ll[stopped] < ll.max() + gate.margin)
+    with pytest.raises(TypeError, match="unexpected keywords"):
+        solve_screened(mdp, theta, beta, gate, tol=1e-9, chunksize=4)

@@ -302,10 +302,12 @@ class _Stages:
         const = 0.0
         if self.model == "maxent-relative":
             const = float(np.log(np.maximum(mdp.available[states].sum(axis=1), 1)).sum())
-        base = mdp.reward_weights(self.theta) @ basis / self.beta - const + prior
+        rw = mdp.reward_weights(self.theta)
+        base = rw @ basis / self.beta - const + prior
+        scale = np.abs(rw) @ np.abs(basis) / self.beta + const + np.abs(prior)
         support = np.flatnonzero(w)
         return Gate(support, w[support], base, self.factor[0], float(w[w > 0].sum()),
-                    math.log(elimination / len(self.beta)), best_known, len(states))
+                    math.log(elimination / len(self.beta)), best_known, len(states), scale)
 
     def run(self, idx: np.ndarray, tol: float, starts, progress, gate=None) -> None:
         """Solve hypotheses ``idx`` to ``tol`` from ``starts`` (per map, ``[H, S]`` or None), with

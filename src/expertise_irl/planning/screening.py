@@ -23,9 +23,13 @@ path every visited state is left as often as it is reached, so its weight is ``�
 visit; only an episode's last state, where it did not reach a goal, has a positive weight (γ).
 So ``W₊`` is at most the number of episodes, against ``Σ|w| ≈ 2E + (1 − γ)N``: the upper bound
 that elimination needs is several times tighter. Values are below the solution when a plain
-Gauss–Seidel sweep raised none of them (each state's backup then read values no higher than the
+Gauss–Seidel sweep lowered none of them (each state's backup then read values no higher than the
 new ones, so ``v ≤ T v``, and ``T`` is monotone), and all along the level sweeps from
 :func:`.level_order.approach_start`, which is below the solution and from which the sweeps rise.
+Rounding can leave such values above the solution by a few units of their last place per backup,
+``8·eps·max|v|/(1 − γ)`` at most over the backups' geometric memory: the upper bound adds that
+much for every unit of ``W₋``, and every sum its own rounding (``64·eps`` times the magnitudes of
+its terms).
 """
 
 from __future__ import annotations
@@ -54,6 +58,8 @@ class Gate(NamedTuple):
         margin: how far (nats, < 0) below the best certain lower bound an upper bound must lie.
         best: a log mass (log-likelihood + log prior weight) already certain (−inf: none).
         n_moves: the observed moves (for the rounding bound of the sums).
+        scale: ``[H]`` the sum of the magnitudes of ``base``'s terms (for its rounding bound;
+            default ``|base|``).
     """
 
     states: np.ndarray
@@ -64,6 +70,7 @@ class Gate(NamedTuple):
     margin: float
     best: float = -np.inf
     n_moves: int = 0
+    scale: np.ndarray | None = None
 
 
 class GateArrays(NamedTuple):
@@ -76,22 +83,25 @@ class GateArrays(NamedTuple):
     positive: jnp.ndarray
     margin: jnp.ndarray
     n_moves: jnp.ndarray
+    scale: jnp.ndarray
 
 
-def gate_arrays(gate: Gate, state_rows: np.ndarray, order: np.ndarray, dtype) -> GateArrays:
+def gate_arrays(gate: Gate, state_rows: np.ndarray, order: np.ndarray, dtype, zero_row: int) -> GateArrays:
     """``gate`` for a pool whose hypothesis ``i`` is the gate's ``order[i]``, on an MDP whose state
-    ``s`` is solver row ``state_rows[s]``; the support padded with zero weights (:data:`MIN_SUPPORT`)."""
+    ``s`` is solver row ``state_rows[s]``; the support padded with zero weights on the solver's
+    ``zero_row`` (:data:`MIN_SUPPORT`)."""
     k = max(len(gate.states), 1)
     size = max(MIN_SUPPORT, 1 << (k - 1).bit_length())
-    rows = np.zeros(size, np.int32)
+    rows = np.full(size, zero_row, np.int32)
     w = np.zeros(size)
     rows[:len(gate.states)] = state_rows[np.asarray(gate.states, np.int64)]
     w[:len(gate.states)] = gate.weights
     base = np.asarray(gate.base)[order]
+    scale = np.abs(base) if gate.scale is None else np.asarray(gate.scale)[order]
     return GateArrays(jnp.asarray(rows), jnp.asarray(w, dtype), jnp.asarray(base, dtype),
                       jnp.asarray(gate.factor, dtype), jnp.asarray(gate.positive, dtype),
-                      jnp.asarray(gate.margin, dtype),
-                      jnp.asarray(gate.n_moves, dtype))
+                      jnp.asarray(gate.margin, dtype), jnp.asarray(gate.n_moves, dtype),
+                      jnp.asarray(scale, dtype))
 
 
 def rough_log_likelihood(gate: Gate, values: np.ndarray, state_rows: np.ndarray) -> np.ndarray:
@@ -111,11 +121,13 @@ def gate_check(g: GateArrays, v_slots, d, vmax, lane_h, active, best, ratio, bel
     """
     eps = jnp.finfo(v_slots.dtype).eps
     terms = v_slots * g.weights
-    b = g.base[lane_h]
-    ll = b + terms.sum(axis=1)
+    ll = g.base[lane_h] + terms.sum(axis=1)
     tol_h = jnp.maximum(d, 8.0 * eps * vmax) * ratio
-    rounding = 64.0 * eps * (jnp.abs(b) + jnp.abs(terms).sum(axis=1) + g.n_moves)
-    up = jnp.where(below, g.positive, g.factor) * tol_h + rounding
+    # values below the solution may exceed it by rounding, 8·eps·max|v|/(1 − γ) at most (module
+    # docstring): 1/(1 − γ) is ratio + 1 for a plain sweep, at most 2·(ratio + 1) for a symmetric one
+    above = 16.0 * eps * vmax * (ratio + 1.0)
+    rounding = 64.0 * eps * (g.scale[lane_h] + jnp.abs(terms).sum(axis=1) + g.n_moves)
+    up = jnp.where(below, g.positive * tol_h + (g.factor - g.positive) * above, g.factor * tol_h) + rounding
     down = jnp.where(below, g.factor - g.positive, g.factor) * tol_h + rounding
     ok = active & jnp.isfinite(ll) & jnp.isfinite(up) & jnp.isfinite(down)
     best = jnp.maximum(best, jnp.max(jnp.where(ok, ll - down, -jnp.inf)))

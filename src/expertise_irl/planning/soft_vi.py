@@ -322,10 +322,12 @@ def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:
     from .newton import certified_backups, newton_values, residuals
 
     g, model = mdp.gamma, opts["model"]
-    near = v_init is not None and np.all(residuals(mdp, theta, beta, v_init, model=model)
-                                         <= NEWTON_FROM * (1 - g) / g)
-    if near:
-        start, rough_sweeps = np.asarray(v_init, float), np.ones(len(beta), np.int64)
+    start = None if v_init is None else np.asarray(v_init, float)
+    near = (start is not None and start.shape == (len(beta), mdp.n_states) and np.isfinite(start).all()
+            and np.all(residuals(mdp, theta, beta, np.where(mdp.terminal, 0.0, start), model=model)
+                       <= NEWTON_FROM * (1 - g) / g))
+    if near:  # (a start of the wrong shape or not finite goes to _solve, which says so)
+        start, rough_sweeps = np.where(mdp.terminal, 0.0, start), np.ones(len(beta), np.int64)
     else:
         rough = _solve(mdp, theta, beta, dtype="float64", v_init=v_init, progress=progress,
                        **{**opts, "tol": NEWTON_FROM, "max_iter": None})
@@ -393,20 +395,34 @@ def solve_screened(mdp: TabularMDP, theta, beta, gate, *, tol: float, v_init: np
     """:func:`solve` (same keywords) with certified elimination in the sweeps: ``gate``
     (:class:`.screening.Gate`, its ``base`` for these hypotheses in this order) stops each
     hypothesis whose log-likelihood is certainly too low as soon as that is certain, with values
-    whose tolerance ``stopped_tol`` reports. Where the gate does not apply (``boltzmann``, float32,
-    Newton's finish) this is :func:`solve`, with ``stopped_tol`` all 0."""
+    whose tolerance ``stopped_tol`` reports. Where Newton's finish applies, the gated sweeps go to
+    :data:`NEWTON_FROM` and the hypotheses they did not stop finish by it. Where the gate does not
+    apply (``boltzmann``, float32, ``float32_start``) this is :func:`solve`, ``stopped_tol`` all 0."""
     enable_float64()
     theta, beta = _as_hypotheses(mdp, theta, beta)
-    model, dtype = kw.get("model", DEFAULT_MODEL), kw.get("dtype", "float64")
+    model, dtype = kw.pop("model", DEFAULT_MODEL), kw.pop("dtype", "float64")
     check_model(model)
-    if (model == "boltzmann" or dtype != "float64" or kw.get("float32_start")
-            or _uses_newton(mdp, model, dtype, tol, kw.get("newton"))):
-        sol = solve(mdp, theta, beta, tol=tol, v_init=v_init, progress=progress, **kw)
+    if model == "boltzmann" or dtype != "float64" or kw.get("float32_start"):
+        sol = solve(mdp, theta, beta, tol=tol, v_init=v_init, progress=progress, model=model, dtype=dtype,
+                    **kw)
         return sol._replace(stopped_tol=np.zeros(len(beta)))
+    known = {"max_iter", "chunk_size", "over_relax", "lanes", "method", "newton", "float32_start"}
+    if set(kw) - known:
+        raise TypeError(f"solve_screened got unexpected keywords {sorted(set(kw) - known)}")
     opts = {"tol": tol, "max_iter": kw.get("max_iter"), "chunk_size": kw.get("chunk_size"), "model": model,
             "over_relax": kw.get("over_relax", True), "lanes": kw.get("lanes"),
             "method": _check_method(mdp, kw.get("method"))}
-    return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, gate=gate, **opts)
+    if not _uses_newton(mdp, model, dtype, tol, kw.get("newton")):
+        return _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, gate=gate, **opts)
+    sol = _solve(mdp, theta, beta, dtype=dtype, v_init=v_init, progress=progress, gate=gate,
+                 **{**opts, "tol": max(tol, NEWTON_FROM), "max_iter": None})
+    live = sol.stopped_tol == 0
+    steps = np.zeros(len(beta), np.int64)
+    if tol < NEWTON_FROM and live.any():
+        fin = _solve_newton(mdp, theta[live], beta[live], sol.value[live], None, opts)
+        sol.value[live], sol.log_policy[live], steps[live] = fin.value, fin.log_policy, fin.newton_steps
+        sol.iterations[live] += fin.iterations
+    return sol._replace(newton_steps=steps)
 
 
 def _solve(mdp, theta, beta, *, v_init, progress, gate=None, **opts) -> SoftSolution:
@@ -512,7 +528,8 @@ class _Pool:
         n, slots = len(idx), self.groups * self.lanes
         padded = np.concatenate([idx, np.repeat(idx[-1:], size - n)])  # one shape for every batch
         live = int(np.sum(self.stopped[idx] == 0))
-        g = None if self.gate is None else gate_arrays(self.gate, self.prep.rows, padded, jnp.float64)
+        g = None if self.gate is None else gate_arrays(self.gate, self.prep.rows, padded, jnp.float64,
+                                                       self.prep.n_rows - 1)
         v, it, delta, self.best = kernel.solve_pool(
             self.prep, jnp.asarray(self.weights[padded]), jnp.asarray(scaled0[padded]), *self.consts,
             groups=self.groups, lanes=self.lanes, model=self.model, relax=self.relax, gate=g, best=self.best,
@@ -583,7 +600,7 @@ def _pool_starts(method, mdp, prep, dtype, weights, scaled0, order, consts, grou
             likely = np.argsort(-rough_log_likelihood(gate._replace(base=np.asarray(gate.base)[order]), v0,
                                                       prep.rows), kind="stable")
             order, w, v0 = order[likely], weights[order[likely]], v0[likely]
-            g = gate_arrays(gate, prep.rows, order, jnp.float64)
+            g = gate_arrays(gate, prep.rows, order, jnp.float64, prep.n_rows - 1)
         v, k, tol_h, best = level_order.level_start(lv, w, v0, gamma, thresh, groups=groups, lanes=lanes,
                                                     model=model, gate=g, best=best, rising=cold)
         stopped[order] = tol_h
