@@ -18,17 +18,18 @@ from expertise_irl.planning.soft_vi import solve, solve_screened
 from expertise_irl.planning.table_likelihood import log_likelihood
 from expertise_irl.worlds.zones import parse_map
 
-SMALL = """
-S....s
-S.xx..
-S.xx.G
-..>>>.
+#: a small map with a road, a restricted block and starts on three sides of the goal
+ROADS = """
+S...x.s
+S.xx...
+..xx>>G
+S......
 """
 
 
 @pytest.fixture(scope="module")
 def small():
-    mdp = parse_map(SMALL, name="screening").to_mdp()
+    mdp = parse_map(ROADS, name="screening").to_mdp()
     rng = np.random.default_rng(7)
     # an off-grid person: θ from a Dirichlet, β log-uniform
     trajs = simulate(mdp, rng.dirichlet(np.ones(mdp.n_features)), float(np.exp(rng.uniform(-1, 1))), 6, rng,
