@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from expertise_irl.errors import InputError
@@ -392,17 +392,22 @@ def hand_drawn(draw):
 
 @settings(max_examples=30, deadline=None)
 @given(grid=hand_drawn())
+@example(grid=np.array([["G", "#"], ["#", "#"]], dtype="<U1"))  # only a goal to stand on
 def test_hand_drawn_maps_compile_or_raise_input_error(grid):
     zm = parse_map("\n".join("".join(r) for r in grid), name="drawn.txt")
     passable = grid != "#"
     connected = bool(reachable_from_goals(grid)[passable].all())
+    only_goals = bool((grid[passable] == "G").all())  # nothing to act in
     try:
         mdp = zm.to_mdp()
     except InputError as exc:
-        assert not connected
-        assert str(exc).startswith("drawn.txt: state ") and "(cell x=" in str(exc)
+        if only_goals:
+            assert str(exc).startswith("drawn.txt: ") and "every state is terminal" in str(exc)
+        else:
+            assert not connected
+            assert str(exc).startswith("drawn.txt: state ") and "(cell x=" in str(exc)
     else:
-        assert connected
+        assert connected and not only_goals
         assert mdp.n_states == int(passable.sum())
         assert mdp.terminal.sum() == (grid == "G").sum()
 
