@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from expertise_irl.demos.simulation import simulate
-from expertise_irl.inference.certified import state_weights, telescoped_log_likelihood
+from expertise_irl.inference.certified import screening_gate, telescoped_log_likelihood
 from expertise_irl.planning import kernels
-from expertise_irl.planning.screening import Gate, GateArrays, gate_arrays, gate_check
+from expertise_irl.planning.screening import GateArrays, gate_arrays, gate_check
 from expertise_irl.planning.soft_vi import solve, solve_screened
 from expertise_irl.planning.table_likelihood import log_likelihood
 from expertise_irl.worlds.zones import parse_map
@@ -37,13 +37,9 @@ def small():
     return mdp, trajs
 
 
-def _gate(mdp, trajs, theta, beta, margin, best=-math.inf):
-    w = state_weights(mdp, [trajs])
-    support = np.flatnonzero(w)
-    basis = mdp.reward_basis()[trajs.state, trajs.action].sum(axis=0)
-    base = mdp.reward_weights(theta) @ basis / beta
-    return Gate(support, w[support], base, float(np.abs(w).sum()), float(w[w > 0].sum()), margin, best,
-                len(trajs.state))
+def _gate(mdp, trajs, theta, beta, margin):
+    """The library's gate for these demonstrations (``maxent``), with the elimination margin given."""
+    return screening_gate(mdp, [trajs], theta, beta)._replace(margin=margin)
 
 
 def _exact_ll(mdp, trajs, theta, beta, model="maxent"):

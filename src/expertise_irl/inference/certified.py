@@ -188,12 +188,25 @@ def state_weights(mdp: TabularMDP, shown) -> np.ndarray:
     return np.where(mdp.terminal, 0.0, w)
 
 
-def error_weight(mdp: TabularMDP, shown, model: str = "maxent") -> float:
+def error_weight(mdp: TabularMDP, shown, model: str = "maxent", weights: np.ndarray | None = None) -> float:
     """The factor F with |LL − exact| ≤ F·tol_h for values within ``tol_h`` (module docstring):
-    ``Σ_s |w_s|`` for :data:`TELESCOPING_MODELS`, ``2N`` for the others."""
+    ``Σ_s |w_s|`` for :data:`TELESCOPING_MODELS`, ``2N`` for the others. ``weights``:
+    :func:`state_weights` of ``shown``, when the caller has them."""
     if model in TELESCOPING_MODELS:
-        return float(np.abs(state_weights(mdp, shown)).sum())
+        return float(np.abs(state_weights(mdp, shown) if weights is None else weights).sum())
     return 2.0 * sum(len(t.state) for t in shown)
+
+
+def _fixed_terms(mdp: TabularMDP, shown, theta, beta, model: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """``([H] Σ_t (r_t − c_t), [H] the sum of its terms' magnitudes, N)``: the part of the
+    telescoped log-likelihood that does not depend on the values (``r = R/β``; module docstring)."""
+    states, actions = _moves(mdp, shown)
+    basis = mdp.reward_basis()[states, actions].sum(axis=0)  # [K'] the observed moves' features
+    rw = mdp.reward_weights(theta)
+    const = 0.0
+    if model == "maxent-relative":
+        const = float(np.log(np.maximum(mdp.available[states].sum(axis=1), 1)).sum())
+    return rw @ basis / beta - const, np.abs(rw) @ np.abs(basis) / beta + const, len(states)
 
 
 def telescoped_log_likelihood(mdp: TabularMDP, shown, theta, beta, value, model: str = "maxent",
@@ -202,18 +215,35 @@ def telescoped_log_likelihood(mdp: TabularMDP, shown, theta, beta, value, model:
     (Trajectories) from values ``value [H, S]`` (reward units) of ``(theta [H, K], beta [H])``;
     finite even where a move is impossible (the caller takes −inf from the table). ``weights``:
     :func:`state_weights` of ``shown``, when the caller has them."""
-    states, actions = _moves(mdp, shown)
-    basis = mdp.reward_basis()[states, actions].sum(axis=0)  # [K'] the observed moves' features
-    rew = mdp.reward_weights(theta) @ basis  # [H] Σ_t R(s_t, a_t)
+    fixed, magnitude, n = _fixed_terms(mdp, shown, theta, beta, model)
     w = state_weights(mdp, shown) if weights is None else weights
     support = np.flatnonzero(w)
     vw = value[:, support] * w[support]
-    const = 0.0
-    if model == "maxent-relative":
-        const = float(np.log(np.maximum(mdp.available[states].sum(axis=1), 1)).sum())
-    ll = (rew + vw.sum(axis=1)) / beta - const
-    scale = (np.abs(mdp.reward_weights(theta)) @ np.abs(basis) + np.abs(vw).sum(axis=1)) / beta + const
-    return ll, 64 * np.finfo(np.float64).eps * (scale + len(states))
+    ll = fixed + vw.sum(axis=1) / beta
+    scale = magnitude + np.abs(vw).sum(axis=1) / beta
+    return ll, 64 * np.finfo(np.float64).eps * (scale + n)
+
+
+def screening_gate(mdp: TabularMDP, shown, theta, beta, *, model: str = "maxent",
+                   log_prior: np.ndarray | None = None, elimination: float = ELIMINATION,
+                   best_known: float = -math.inf, weights: np.ndarray | None = None):
+    """The :class:`~expertise_irl.planning.screening.Gate` that eliminates hypotheses ``(theta [H, K],
+    beta [H])`` in the sweeps for the moves of ``shown`` on one map, or None where it cannot: a
+    model whose log-likelihood does not telescope, or an observed action unavailable (every
+    hypothesis' log-likelihood is then −inf). ``weights``: :func:`state_weights` of ``shown``."""
+    from ..planning.screening import Gate
+
+    if model not in TELESCOPING_MODELS:
+        return None
+    states, actions = _moves(mdp, shown)
+    if len(states) and not (mdp.available[states, actions].all() and (~mdp.terminal[states]).all()):
+        return None
+    w = state_weights(mdp, shown) if weights is None else weights
+    prior = np.zeros(len(beta)) if log_prior is None else np.asarray(log_prior, float)
+    fixed, magnitude, n = _fixed_terms(mdp, shown, theta, beta, model)
+    support = np.flatnonzero(w)
+    return Gate(support, w[support], fixed + prior, float(np.abs(w).sum()), float(w[w > 0].sum()),
+                math.log(elimination / len(beta)), best_known, n, magnitude + np.abs(prior))
 
 
 def _reached(mdp: TabularMDP, value: np.ndarray, beta: np.ndarray, tol: float) -> np.ndarray:
@@ -273,9 +303,8 @@ class _Stages:
         self.model = solve_kwargs.get("model", "maxent")
         # per map: the telescoped sum's state weights and the log-likelihood's error per unit tol_h
         self.weights = [state_weights(mdp, shown) for mdp, shown in tasks]
-        self.factor = [float(np.abs(w).sum()) if self.model in TELESCOPING_MODELS
-                       else 2.0 * sum(len(t.state) for t in shown)
-                       for w, (_, shown) in zip(self.weights, tasks, strict=True)]
+        self.factor = [error_weight(mdp, shown, self.model, w) for w, (mdp, shown) in zip(self.weights, tasks,
+                                                                                          strict=True)]
         self.ll, self.err = np.zeros(H), np.zeros(H)
         self.sweeps = np.zeros(H, np.int64)
         self.newton = np.zeros(H, np.int64)
@@ -286,28 +315,13 @@ class _Stages:
         self.values: list[np.ndarray] = []
 
     def gate(self, prior: np.ndarray, elimination: float, best_known: float):
-        """The :class:`~expertise_irl.planning.screening.Gate` of the first stage, or None where the
-        sweeps cannot eliminate: several maps (each solve sees one map's share), a model whose
-        log-likelihood does not telescope, or an observed action unavailable (every hypothesis'
-        log-likelihood is then −inf)."""
-        from ..planning.screening import Gate
-
-        if len(self.tasks) != 1 or self.model not in TELESCOPING_MODELS:
+        """The first stage's :func:`screening_gate`, or None with several maps (each solve sees
+        one map's share of the log-likelihood)."""
+        if len(self.tasks) != 1:
             return None
-        (mdp, shown), w = self.tasks[0], self.weights[0]
-        states, actions = _moves(mdp, shown)
-        if len(states) and not (mdp.available[states, actions].all() and (~mdp.terminal[states]).all()):
-            return None
-        basis = mdp.reward_basis()[states, actions].sum(axis=0)
-        const = 0.0
-        if self.model == "maxent-relative":
-            const = float(np.log(np.maximum(mdp.available[states].sum(axis=1), 1)).sum())
-        rw = mdp.reward_weights(self.theta)
-        base = rw @ basis / self.beta - const + prior
-        scale = np.abs(rw) @ np.abs(basis) / self.beta + const + np.abs(prior)
-        support = np.flatnonzero(w)
-        return Gate(support, w[support], base, self.factor[0], float(w[w > 0].sum()),
-                    math.log(elimination / len(self.beta)), best_known, len(states), scale)
+        mdp, shown = self.tasks[0]
+        return screening_gate(mdp, shown, self.theta, self.beta, model=self.model, log_prior=prior,
+                              elimination=elimination, best_known=best_known, weights=self.weights[0])
 
     def run(self, idx: np.ndarray, tol: float, starts, progress, gate=None) -> None:
         """Solve hypotheses ``idx`` to ``tol`` from ``starts`` (per map, ``[H, S]`` or None), with
