@@ -96,9 +96,10 @@ def test_a_chord_that_gets_nowhere_leaves_the_sweeps_to_finish(plan, monkeypatch
 
 @pytest.mark.parametrize("model", ["maxent", "maxent-relative"])
 def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(plan, model, monkeypatch):
-    """certified_backups: values solved to 1e-11 pass for tol 1e-9 and come back as the pool's last
-    backup gives them (value and normalised log-policy, terminal rows −inf); rough values (0.1 nats)
-    are refused; a repeated hypothesis gets the same answer as its first."""
+    """newton_finish: from values solved to 1e-11, one backup certifies tol 1e-9 and they come back
+    as the pool's last backup gives them (value and normalised log-policy, terminal rows −inf); a
+    repeated hypothesis is worked on once and gets the same answer; values the chord cannot move
+    (no step allowed) from 0.1 nats are refused, and come back as they went in."""
     mdp, theta = plan
     b = np.array([0.1, 1.0, 10.0, 1.0, 0.5, 2.0])
     th = theta.copy()
@@ -106,10 +107,9 @@ def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(pl
     close = solve(mdp, th, b, tol=1e-11, model=model, newton=False)
     walks = []
     monkeypatch.setattr(newton, "_Walk", lambda *a: walks.append(a) or _Walk(*a))
-    out = newton.certified_backups(mdp, th, b, close.value, 1e-9, model=model)
-    assert len(walks) == 5  # the repeated hypothesis is backed up once
-    assert out is not None
-    value, log_pi = out
+    value, log_pi, steps = newton.newton_finish(mdp, th, b, close.value, 1e-9, model=model)
+    assert len(walks) == 5  # the repeated hypothesis is worked on once
+    assert log_pi is not None and np.all(steps == 0)
     assert np.max(np.abs(value - close.value) / b[:, None]) <= 1e-11
     fin = np.isfinite(close.log_policy)
     np.testing.assert_array_equal(np.isfinite(log_pi), fin)
@@ -117,4 +117,7 @@ def test_one_backup_certifies_values_that_are_close_enough_and_refuses_others(pl
     np.testing.assert_array_equal(value[3], value[1])
     np.testing.assert_array_equal(value[:, mdp.terminal], 0.0)
     rough = solve(mdp, th, b, tol=0.1, model=model, newton=False)
-    assert newton.certified_backups(mdp, th, b, rough.value, 1e-9, model=model) is None
+    monkeypatch.setattr(newton, "MAX_STEPS", 0)
+    value, log_pi, _ = newton.newton_finish(mdp, th, b, rough.value, 1e-9, model=model)
+    assert log_pi is None
+    np.testing.assert_array_equal(value, rough.value)

@@ -34,7 +34,7 @@ from scipy.special import logsumexp
 
 from ..mdp import TabularMDP
 
-__all__ = ["MAX_STEPS", "SOFT_MODELS", "certified_backups", "newton_values", "residuals"]
+__all__ = ["MAX_STEPS", "SOFT_MODELS", "newton_finish", "newton_values", "residuals"]
 
 #: The models whose backup is smooth (a log-sum-exp): Newton's method applies.
 SOFT_MODELS = ("maxent", "maxent-relative")
@@ -71,6 +71,25 @@ class _Walk:
         top = logsumexp(q, axis=1)
         return top - self.shift, np.exp(q - top[:, None])
 
+    def finish(self, v: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """Certify scaled values ``v [S]`` without a pool of sweeps: one Jacobi backup ``v₁ = T v``;
+        ``T`` is a γ-contraction, so where it changes them by at most ``tol·(1 − γ)/γ`` (or the
+        floating-point floor ``8·eps·max|v|``, as the sweeps stop) ``|v₁ − v*| ≤ tol``. One more
+        backup gives the values ``T v₁`` and the normalised log-policy of ``v₁``, as the pool's last
+        backup does: ``(values [S], log-policy [S, A])`` scaled (terminal rows 0 and −inf), or None
+        where the first backup changed the values by more."""
+        g, act = self.g, self.act
+        v1 = np.zeros_like(v)
+        v1[act] = self.backup(v)[0]
+        floor = 8 * np.finfo(float).eps * np.max(np.abs(v), initial=0.0)
+        if np.max(np.abs(v1 - v), initial=0.0) > max(tol * (1 - g) / g, floor):
+            return None
+        q = np.where(self.avail, self.r + g * v1[self.nxt], -np.inf)
+        top = logsumexp(q, axis=1)
+        value, log_pi = np.zeros_like(v), np.full((v.size, self.avail.shape[1]), -np.inf)
+        value[act], log_pi[act] = top - self.shift, q - top[:, None]
+        return value, log_pi
+
     def jacobian(self, p: np.ndarray):
         """``I − γ P_π`` on the non-terminal states (moves into terminal states drop out: value 0)."""
         n = int(self.act.sum())
@@ -104,16 +123,14 @@ def _chord(walk: _Walk, v: np.ndarray, threshold: float) -> tuple[np.ndarray, in
     return best, step
 
 
-def residuals(mdp: TabularMDP, theta, beta, value, *, model: str = "maxent") -> np.ndarray:
+def residuals(mdp: TabularMDP, theta, beta, value, *, model: str = "maxent",
+              threads: int | None = None) -> np.ndarray:
     """``[H]`` the largest change ``max_s |v − T v|`` one Jacobi backup makes to each hypothesis'
     scaled values ``v = value/β`` (``value [H, S]`` in reward units), over the non-terminal states."""
-    theta, beta = np.atleast_2d(theta), np.atleast_1d(np.asarray(beta, float))
-    out = np.empty(len(beta))
-    for h in range(len(beta)):
-        walk = _Walk(mdp, theta[h], float(beta[h]), model)
-        v = np.asarray(value[h], float) / beta[h]
-        out[h] = np.max(np.abs(v[walk.act] - walk.backup(v)[0]), initial=0.0)
-    return out
+    def one(walk: _Walk, v: np.ndarray) -> float:
+        return float(np.max(np.abs(v[walk.act] - walk.backup(v)[0]), initial=0.0))
+
+    return np.array(_each(mdp, theta, beta, value, model, one, threads))
 
 
 def newton_values(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str = "maxent",
@@ -140,54 +157,52 @@ def newton_values(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str
     Raises:
         ValueError: a model without a smooth backup.
     """
+    threshold = MARGIN * tol * (1 - mdp.gamma) / mdp.gamma
+    done = _each(mdp, theta, beta, value, model, lambda walk, v: _chord(walk, v, threshold), threads)
+    return _scaled_back(np.array([v for v, _ in done]), beta), np.array([k for _, k in done], np.int64)
+
+
+def newton_finish(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str = "maxent",
+                  threads: int | None = None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """:func:`newton_values`, then each hypothesis certified by one backup (:meth:`_Walk.finish`),
+    on the same thread and walk: ``([H, S] values in reward units, [H, S, A] log-policies or None,
+    [H] steps)``. With the log-policies the values are within ``tol`` of the solution (reported one
+    backup further, as the pool reports them); None where any hypothesis' backup did not certify
+    ``tol``, and the values are then :func:`newton_values`' (for the sweeps to finish)."""
+    threshold = MARGIN * tol * (1 - mdp.gamma) / mdp.gamma
+
+    def one(walk: _Walk, v: np.ndarray):
+        v, steps = _chord(walk, v, threshold)
+        return v, steps, walk.finish(v, tol)
+
+    done = _each(mdp, theta, beta, value, model, one, threads)
+    steps = np.array([k for _, k, _ in done], np.int64)
+    if any(f is None for _, _, f in done):
+        return _scaled_back(np.array([v for v, _, _ in done]), beta), None, steps
+    log_pi = np.array([f[1] for _, _, f in done])
+    return _scaled_back(np.array([f[0] for _, _, f in done]), beta), log_pi, steps
+
+
+def _scaled_back(values: np.ndarray, beta) -> np.ndarray:
+    """Scaled values ``[H, S]`` in reward units."""
+    return values * np.atleast_1d(np.asarray(beta, float))[:, None]
+
+
+def _each(mdp: TabularMDP, theta, beta, value, model: str, fn, threads: int | None) -> list:
+    """``[fn(walk_h, value[h]/β_h) for every hypothesis h]``, on threads (SuperLU releases the
+    interpreter), each distinct hypothesis and start once (a padded batch repeats one)."""
     if model not in SOFT_MODELS:
         raise ValueError(f"Newton's method needs a smooth backup ({', '.join(SOFT_MODELS)}), got {model!r}")
     theta, beta = np.atleast_2d(theta), np.atleast_1d(np.asarray(beta, float))
     value = np.asarray(value, float)
-    threshold = MARGIN * tol * (1 - mdp.gamma) / mdp.gamma
+    seen: dict[bytes, int] = {}  # bitwise-equal rows (np.unique(axis=0) took 0.3 s at 79,040 states)
+    inverse = [seen.setdefault(row.tobytes(), len(seen)) for row in np.column_stack([theta, beta, value])]
+    first = [inverse.index(i) for i in range(len(seen))]
 
-    def one(h: int) -> tuple[np.ndarray, int]:
-        v, steps = _chord(_Walk(mdp, theta[h], float(beta[h]), model), value[h] / beta[h], threshold)
-        return v * beta[h], steps
+    def one(h: int):
+        return fn(_Walk(mdp, theta[h], float(beta[h]), model), value[h] / beta[h])
 
-    first, inverse = _distinct(theta, beta, value)
     workers = max(1, min(len(first), threads or os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        done = list(pool.map(one, first.tolist()))
-    values = np.array([v for v, _ in done]).reshape(len(first), *value.shape[1:])[inverse]
-    return values, np.array([k for _, k in done], np.int64)[inverse]
-
-
-def _distinct(theta, beta, value) -> tuple[np.ndarray, np.ndarray]:
-    """``(first, inverse)``: one index per distinct hypothesis and start (a padded batch repeats
-    one), and for each hypothesis the position of its own in ``first``."""
-    _, first, inverse = np.unique(np.column_stack([theta, beta, value]), axis=0, return_index=True,
-                                  return_inverse=True)
-    return first, inverse.reshape(-1)
-
-
-def certified_backups(mdp: TabularMDP, theta, beta, value, tol: float, *, model: str = "maxent"):
-    """Certify Newton's values without a pool of sweeps: one Jacobi backup ``v₁ = T v`` of each
-    hypothesis' scaled values; ``T`` is a γ-contraction, so where it changes them by at most
-    ``tol·(1 − γ)/γ`` (or the floating-point floor ``8·eps·max|v|``, as the sweeps stop)
-    ``|v₁ − v*| ≤ tol``. One more backup gives the values ``T v₁`` and the normalised log-policy of
-    ``v₁``, as the pool's last backup does. Returns ``(value [H, S] reward units, log_policy
-    [H, S, A])``, or None if any hypothesis' backup changed its values by more."""
-    theta, beta = np.atleast_2d(theta), np.atleast_1d(np.asarray(beta, float))
-    value = np.asarray(value, float)
-    S, A, g = mdp.n_states, mdp.n_actions, mdp.gamma
-    first, inverse = _distinct(theta, beta, value)
-    out_v, out_lp = np.zeros((len(first), S)), np.full((len(first), S, A), -np.inf)
-    for i, h in enumerate(first.tolist()):
-        walk = _Walk(mdp, theta[h], float(beta[h]), model)
-        v = value[h] / beta[h]
-        v1 = np.zeros(S)
-        v1[walk.act] = walk.backup(v)[0]
-        floor = 8 * np.finfo(float).eps * np.max(np.abs(v), initial=0.0)
-        if np.max(np.abs(v1 - v), initial=0.0) > max(tol * (1 - g) / g, floor):
-            return None
-        q = np.where(walk.avail, walk.r + g * v1[walk.nxt], -np.inf)
-        top = logsumexp(q, axis=1)
-        out_v[i, walk.act] = (top - walk.shift) * beta[h]
-        out_lp[i, walk.act] = q - top[:, None]
-    return out_v[inverse], out_lp[inverse]
+        done = list(pool.map(one, first))
+    return [done[i] for i in inverse]

@@ -43,6 +43,7 @@ than float64.
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 from collections.abc import Callable
@@ -317,25 +318,26 @@ def _uses_newton(mdp: TabularMDP, model: str, dtype: str, tol: float, newton: bo
 def _solve_newton(mdp, theta, beta, v_init, progress, opts) -> SoftSolution:
     """Sweeps to :data:`NEWTON_FROM` (none where ``v_init`` is that close already: one backup
     each, counted as a sweep), Newton's method from there, then one backup that certifies ``tol``
-    (:func:`.newton.certified_backups`) or, where it does not, the pool's plain sweeps to ``tol``;
+    (:func:`.newton.newton_finish`) or, where it does not, the pool's plain sweeps to ``tol``;
     ``iterations`` counts both sweeps, ``newton_steps`` the steps."""
-    from .newton import certified_backups, newton_values, residuals
+    from .newton import newton_finish, residuals
 
     g, model = mdp.gamma, opts["model"]
     start = None if v_init is None else np.asarray(v_init, float)
-    near = (start is not None and start.shape == (len(beta), mdp.n_states) and np.isfinite(start).all()
-            and np.all(residuals(mdp, theta, beta, np.where(mdp.terminal, 0.0, start), model=model)
-                       <= NEWTON_FROM * (1 - g) / g))
-    if near:  # (a start of the wrong shape or not finite goes to _solve, which says so)
-        start, rough_sweeps = np.where(mdp.terminal, 0.0, start), np.ones(len(beta), np.int64)
+    if start is not None and start.shape == (len(beta), mdp.n_states) and np.isfinite(start).all():
+        start = np.where(mdp.terminal, 0.0, start)  # (the sweeps ignore a start's terminal values)
+    else:  # none, or of the wrong shape or not finite: _solve says so
+        start = None
+    if start is not None and np.all(residuals(mdp, theta, beta, start, model=model)
+                                    <= NEWTON_FROM * (1 - g) / g):
+        rough_sweeps = np.ones(len(beta), np.int64)
     else:
         rough = _solve(mdp, theta, beta, dtype="float64", v_init=v_init, progress=progress,
                        **{**opts, "tol": NEWTON_FROM, "max_iter": None})
         start, rough_sweeps = rough.value, rough.iterations
-    values, steps = newton_values(mdp, theta, beta, start, opts["tol"], model=model)
-    done = certified_backups(mdp, theta, beta, values, opts["tol"], model=model)
-    if done is not None:  # one backup each certified them: two backups, counted as sweeps
-        return SoftSolution(done[0], done[1], rough_sweeps + 2, beta.copy(), model, newton_steps=steps)
+    values, log_pi, steps = newton_finish(mdp, theta, beta, start, opts["tol"], model=model)
+    if log_pi is not None:  # one backup each certified them: two backups, counted as sweeps
+        return SoftSolution(values, log_pi, rough_sweeps + 2, beta.copy(), model, newton_steps=steps)
     sol = _solve(mdp, theta, beta, dtype="float64", v_init=values, progress=None,
                  **{**opts, "method": "sweeps"})
     return sol._replace(iterations=sol.iterations + rough_sweeps, newton_steps=steps)
@@ -406,7 +408,7 @@ def solve_screened(mdp: TabularMDP, theta, beta, gate, *, tol: float, v_init: np
         sol = solve(mdp, theta, beta, tol=tol, v_init=v_init, progress=progress, model=model, dtype=dtype,
                     **kw)
         return sol._replace(stopped_tol=np.zeros(len(beta)))
-    known = {"max_iter", "chunk_size", "over_relax", "lanes", "method", "newton", "float32_start"}
+    known = set(inspect.signature(solve).parameters) - {"mdp", "theta", "beta", "tol", "v_init", "progress"}
     if set(kw) - known:
         raise TypeError(f"solve_screened got unexpected keywords {sorted(set(kw) - known)}")
     opts = {"tol": tol, "max_iter": kw.get("max_iter"), "chunk_size": kw.get("chunk_size"), "model": model,
